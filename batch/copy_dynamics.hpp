@@ -1,0 +1,57 @@
+// Dynamics of one environment copy at a time, for tools, tests and users who
+// want answers for a single state. It runs the same kernels as the batch, on
+// the scalar reference lane, in the chosen precision; inputs and outputs are
+// double Eigen vectors in low-level order.
+//
+// Shapes: q (nq), v (nv), tau (nv), link_wrench (nbody x 6, each row a world-
+// frame [force; torque about the body's COM]); matrices nv x nv.
+#pragma once
+
+#include "layout/model.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace lockstep {
+
+enum class Precision { Float, Double };
+const char* precision_name(Precision precision);
+
+class CopyDynamics {
+ public:
+  explicit CopyDynamics(const Model& model, Precision precision = Precision::Double);
+  ~CopyDynamics();
+  CopyDynamics(CopyDynamics&&) noexcept;
+  CopyDynamics& operator=(CopyDynamics&&) noexcept;
+
+  const Model& model() const { return *model_; }
+  Precision precision() const { return precision_; }
+
+  // World pose of every frame (URDF link), indexed like model.frame_name.
+  std::vector<Eigen::Isometry3d> frame_poses(const Eigen::VectorXd& q) const;
+  // World pose of every body, indexed like model.body_parent.
+  std::vector<Eigen::Isometry3d> body_poses(const Eigen::VectorXd& q) const;
+
+  Eigen::MatrixXd mass_matrix(const Eigen::VectorXd& q) const;                 // CRBA, armature included
+  Eigen::MatrixXd inverse_mass_matrix(const Eigen::VectorXd& q) const;
+  Eigen::VectorXd bias_force(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const;  // Coriolis + centrifugal + gravity
+  Eigen::VectorXd coriolis_force(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const;
+  Eigen::VectorXd gravity_force(const Eigen::VectorXd& q) const;               // holds the model still against gravity
+  Eigen::VectorXd external_force(const Eigen::VectorXd& q, const Eigen::MatrixXd& link_wrench) const;  // sum J^T F
+  // RNEA: tau = M a + bias - external_force.
+  Eigen::VectorXd inverse_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& a,
+                                   const Eigen::MatrixXd* link_wrench = nullptr) const;
+  // ABA: a = M^-1 (tau - bias + external_force).
+  Eigen::VectorXd forward_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& tau,
+                                   const Eigen::MatrixXd* link_wrench = nullptr) const;
+  double kinetic_energy(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const;
+  double potential_energy(const Eigen::VectorXd& q) const;
+
+ private:
+  struct Impl;
+  const Model* model_;
+  Precision precision_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lockstep

@@ -1,0 +1,176 @@
+// The lane type: one environment copy per lane. Kernels are templates on a
+// lane type L, which is either a plain float/double (the scalar reference:
+// one copy) or xsimd::batch<T> (all lanes of one SIMD register). Only this
+// header knows about xsimd; kernels use the operators and the functions below.
+//
+// Every function here rounds identically in the scalar and the SIMD
+// instantiation (IEEE +,-,*,/,sqrt; explicit fused multiply-add; sin/cos by
+// the same polynomial), so SIMD lanes reproduce the scalar reference bit for
+// bit. Build with -ffp-contract=off so the compiler adds no fusions of its own.
+#pragma once
+
+#include <xsimd/xsimd.hpp>
+
+#include <cmath>
+#include <cstddef>
+#include <type_traits>
+
+namespace lockstep::lane {
+
+using simd_arch = xsimd::default_arch;
+template <class T>
+using simd = xsimd::batch<T, simd_arch>;
+
+template <class L>
+struct traits {  // the scalar reference: one lane
+  using scalar = L;
+  using mask = bool;
+  static constexpr std::size_t width = 1;
+};
+template <class T, class A>
+struct traits<xsimd::batch<T, A>> {
+  using scalar = T;
+  using mask = xsimd::batch_bool<T, A>;
+  static constexpr std::size_t width = xsimd::batch<T, A>::size;
+};
+
+template <class L>
+using scalar_t = typename traits<L>::scalar;
+template <class L>
+using mask_t = typename traits<L>::mask;
+template <class L>
+inline constexpr std::size_t width_v = traits<L>::width;
+template <class L>
+inline constexpr bool is_scalar_v = std::is_floating_point_v<L>;
+
+// Memory: `p` points at `width` consecutive copies of one field.
+template <class L>
+inline L load(const scalar_t<L>* p) {
+  if constexpr (is_scalar_v<L>) return *p;
+  else return L::load_aligned(p);
+}
+template <class L>
+inline void store(const L& x, scalar_t<L>* p) {
+  if constexpr (is_scalar_v<L>) *p = x;
+  else x.store_aligned(p);
+}
+template <class L>
+inline L broadcast(scalar_t<L> x) { return L(x); }
+
+// a*b + c, fused (one rounding) wherever the target has FMA, on every
+// instantiation alike: the scalar reference fuses exactly when the SIMD lanes
+// do. (xsimd 8.1 leaves AVX-512 fma unfused, hence the intrinsics.)
+template <class L>
+inline L fmadd(const L& a, const L& b, const L& c) {
+  if constexpr (is_scalar_v<L>) {
+#if defined(__FMA__)
+    return std::fma(a, b, c);
+#else
+    return a * b + c;
+#endif
+  } else {
+#if defined(__AVX512F__)
+    if constexpr (std::is_same_v<simd_arch, xsimd::avx512bw> || std::is_same_v<simd_arch, xsimd::avx512dq> ||
+                  std::is_same_v<simd_arch, xsimd::avx512cd> || std::is_same_v<simd_arch, xsimd::avx512f>) {
+      if constexpr (std::is_same_v<scalar_t<L>, float>) return L(_mm512_fmadd_ps(a, b, c));
+      else return L(_mm512_fmadd_pd(a, b, c));
+    }
+#endif
+    return xsimd::fma(a, b, c);
+  }
+}
+// c - a*b, with the same rounding rule as fmadd.
+template <class L>
+inline L fnmadd(const L& a, const L& b, const L& c) {
+  return fmadd(L(-a), b, c);
+}
+
+template <class L>
+inline L sqrt(const L& x) {
+  if constexpr (is_scalar_v<L>) return std::sqrt(x);
+  else return xsimd::sqrt(x);
+}
+template <class L>
+inline L abs(const L& x) {
+  if constexpr (is_scalar_v<L>) return std::fabs(x);
+  else return xsimd::abs(x);
+}
+template <class L>
+inline L min(const L& a, const L& b) {
+  if constexpr (is_scalar_v<L>) return b < a ? b : a;
+  else return xsimd::min(a, b);
+}
+template <class L>
+inline L max(const L& a, const L& b) {
+  if constexpr (is_scalar_v<L>) return a < b ? b : a;
+  else return xsimd::max(a, b);
+}
+// Round to the nearest integer, ties to even (the current rounding mode).
+template <class L>
+inline L round_even(const L& x) {
+  if constexpr (is_scalar_v<L>) return std::nearbyint(x);
+  else return xsimd::nearbyint(x);
+}
+// Lane-wise choice, never a branch on lane data.
+template <class L>
+inline L select(const mask_t<L>& m, const L& a, const L& b) {
+  if constexpr (is_scalar_v<L>) return m ? a : b;
+  else return xsimd::select(m, a, b);
+}
+// True in lanes that hold a finite number.
+template <class L>
+inline mask_t<L> is_finite(const L& x) {
+  if constexpr (is_scalar_v<L>) return std::isfinite(x);
+  else return xsimd::isfinite(x);
+}
+template <class L>
+inline bool all(const mask_t<L>& m) {
+  if constexpr (is_scalar_v<L>) return m;
+  else return xsimd::all(m);
+}
+
+// sin and cos of x together, to about 1 ulp for |x| < 1e4 (joint angles;
+// larger arguments lose accuracy in the Cody-Waite reduction). Cephes'
+// minimax polynomials on [-pi/4, pi/4] after reducing by multiples of pi/2.
+template <class L>
+inline void sincos(const L& x, L& s, L& c) {
+  using T = scalar_t<L>;
+  const L quadrant = round_even(x * L(T(0.63661977236758134308)));  // x / (pi/2)
+  // x - quadrant * pi/2 in three parts (Cody-Waite), exact products by fma.
+  L r;
+  if constexpr (std::is_same_v<T, float>) {
+    r = fnmadd(quadrant, L(1.5703125f), x);
+    r = fnmadd(quadrant, L(4.837512969970703125e-4f), r);
+    r = fnmadd(quadrant, L(7.54978995489188216e-8f), r);
+  } else {
+    r = fnmadd(quadrant, L(1.57079625129699707031), x);
+    r = fnmadd(quadrant, L(7.54978941586159635336e-8), r);
+    r = fnmadd(quadrant, L(5.39030285815811905290e-15), r);
+  }
+  const L r2 = r * r;
+  L sin_r, cos_r;
+  if constexpr (std::is_same_v<T, float>) {
+    sin_r = fmadd(fmadd(fmadd(L(-1.9515295891e-4f), r2, L(8.3321608736e-3f)), r2,
+                        L(-1.6666654611e-1f)), r2 * r, r);
+    cos_r = fmadd(fmadd(fmadd(L(2.443315711809948e-5f), r2, L(-1.388731625493765e-3f)), r2,
+                        L(4.166664568298827e-2f)), r2 * r2, fnmadd(L(0.5f), r2, L(1.0f)));
+  } else {
+    sin_r = fmadd(fmadd(fmadd(fmadd(fmadd(fmadd(L(1.58962301576546568060e-10), r2,
+        L(-2.50507477628578072866e-8)), r2, L(2.75573136213857245213e-6)), r2,
+        L(-1.98412698295895385996e-4)), r2, L(8.33333333332211858878e-3)), r2,
+        L(-1.66666666666666307295e-1)), r2 * r, r);
+    cos_r = fmadd(fmadd(fmadd(fmadd(fmadd(fmadd(L(-1.13585365213876817300e-11), r2,
+        L(2.08757008419747316778e-9)), r2, L(-2.75573141792967388112e-7)), r2,
+        L(2.48015872888517045348e-5)), r2, L(-1.38888888888730564116e-3)), r2,
+        L(4.16666666666665929218e-2)), r2 * r2, fnmadd(L(0.5), r2, L(1.0)));
+  }
+  // Quadrant k: (sin, cos) = (s, c), (c, -s), (-s, -c), (-c, s).
+  const L k = quadrant - L(T(4)) * round_even((quadrant - L(T(1.5))) * L(T(0.25)));  // k in {0..3}
+  const auto swap = (k == L(T(1))) || (k == L(T(3)));
+  const L s0 = select(swap, cos_r, sin_r);
+  const L c0 = select(swap, sin_r, cos_r);
+  s = select(k >= L(T(2)), -s0, s0);
+  c = select((k == L(T(1))) || (k == L(T(2))), -c0, c0);
+}
+
+}  // namespace lockstep::lane

@@ -1,0 +1,122 @@
+// The immutable articulation model: topology, parameters, frames, shapes and
+// the name maps, in low-level (parent-first) order. Built by ModelBuilder or
+// the URDF importer; never changed afterwards.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace lockstep {
+
+// Joint types a body can hang on. Fixed joints exist only in the builder:
+// they are fused into the parent body and survive as frames.
+enum class JointType : std::uint8_t { Free, Spherical, Revolute, Prismatic, Fixed };
+
+const char* joint_type_name(JointType type);
+int joint_nq(JointType type);   // configuration size: Free 7, Spherical 4, 1-DOF 1, Fixed 0
+int joint_nv(JointType type);   // velocity size:      Free 6, Spherical 3, 1-DOF 1, Fixed 0
+
+enum class ShapeType : std::uint8_t { Sphere, Box, Cylinder, Capsule, Mesh };
+const char* shape_type_name(ShapeType type);
+
+// A collision shape attached to a body. Cylinders and capsules are along the
+// shape frame's z axis (URDF convention).
+struct Shape {
+  ShapeType type = ShapeType::Sphere;
+  int body = -1;                    // -1: the static world
+  int frame = -1;                   // the URDF link it was declared on
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // in the body frame
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();  // sphere (r,0,0); box half extents; cylinder/capsule (r, half length, 0)
+  std::string mesh_path;            // Mesh only
+  Eigen::Vector3d mesh_scale = Eigen::Vector3d::Ones();
+};
+
+// A mimic tag: q[dof] = multiplier * q[leader_dof] + offset. Not enforced by
+// the dynamics kernels; the simulation step turns it into a constraint.
+struct Mimic {
+  int dof = -1;
+  int leader_dof = -1;
+  double multiplier = 1.0;
+  double offset = 0.0;
+};
+
+struct Articulation {
+  std::string name;
+  bool floating_base = false;
+  int first_body = 0;   // bodies [first_body, first_body + body_count)
+  int body_count = 0;
+  int root_frame = -1;  // the frame of the root link
+};
+
+// Field names follow `object_property`; the shape of each array is given.
+// Body frames are joint frames: a Revolute or Prismatic joint moves along the
+// body frame's z axis (the importer rotates frames to make it so).
+struct Model {
+  static constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+  int nbody = 0;  // moving bodies (the world is body -1)
+  int nq = 0;     // configuration size
+  int nv = 0;     // velocity size = number of DOFs
+  Eigen::Vector3d gravity{0.0, 0.0, -9.81};
+
+  // bodies (nbody), parent-first: body_parent[i] < i
+  std::vector<int> body_parent;                   // -1: the world
+  std::vector<JointType> body_joint;              // the inbound joint (never Fixed)
+  std::vector<Eigen::Isometry3d> body_placement;  // joint frame in the parent body frame at q = 0
+  std::vector<int> body_q_offset;                 // first entry of the joint in q
+  std::vector<int> body_dof_offset;               // first entry of the joint in v (low-level DOF index)
+  std::vector<int> body_articulation;
+  std::vector<int> body_frame;                    // the frame (URDF link) the body is named after
+  std::vector<double> body_mass;                  // kg, fused fixed children included
+  std::vector<Eigen::Vector3d> body_com;          // centre of mass in the body frame
+  std::vector<Eigen::Matrix3d> body_inertia;      // rotational inertia about the COM, body axes
+  std::vector<std::string> joint_name;            // the inbound joint's name
+
+  // dofs (nv), low-level order
+  std::vector<std::string> dof_name;   // joint name, or joint name + [k] for multi-DOF joints
+  std::vector<int> dof_body;
+  std::vector<int> dof_parent;         // previous DOF on the path to the root, -1 at a root
+  std::vector<double> dof_lower;       // position limits (-inf/+inf when unlimited)
+  std::vector<double> dof_upper;
+  std::vector<double> dof_velocity_limit;  // +inf when none
+  std::vector<double> dof_effort_limit;    // +inf when none
+  std::vector<double> dof_damping;
+  std::vector<double> dof_friction;
+  std::vector<double> dof_armature;
+
+  // frames: every link the user declared, in low-level order
+  std::vector<std::string> frame_name;
+  std::vector<int> frame_body;                    // -1: fixed to the world
+  std::vector<Eigen::Isometry3d> frame_placement; // link frame in the body frame
+  std::vector<int> frame_parent;                  // parent link's frame, -1 for a root
+  std::vector<std::string> frame_joint_name;      // the URDF joint above the link ("" for a root)
+  std::vector<JointType> frame_joint_type;        // Fixed when the link was fused
+  std::vector<Eigen::Vector3d> frame_joint_axis;  // axis as declared, in the link frame
+  std::vector<int> frame_articulation;
+
+  std::vector<Shape> shapes;
+  std::vector<Mimic> mimics;
+  std::vector<Articulation> articulations;
+
+  // Name lookups; each throws std::out_of_range naming the missing name.
+  int frame_index(const std::string& name) const;
+  int joint_index(const std::string& name) const;  // == body index of a moving joint
+  int dof_index(const std::string& name) const;
+  int articulation_index(const std::string& name) const;
+
+  double total_mass() const;
+  // q at the zero configuration: identity quaternions, zero elsewhere.
+  Eigen::VectorXd neutral_configuration() const;
+
+  std::unordered_map<std::string, int> frame_by_name;
+  std::unordered_map<std::string, int> joint_by_name;
+  std::unordered_map<std::string, int> dof_by_name;
+};
+
+}  // namespace lockstep

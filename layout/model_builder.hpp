@@ -1,0 +1,102 @@
+// Builds an immutable Model from articulations described link by link,
+// parent-first, in the spirit of the parallel links/joints arrays of an
+// articulated-actor description. The URDF importer produces the same specs.
+#pragma once
+
+#include "layout/model.hpp"
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace lockstep {
+
+// Raised for any invalid model input; the message names the source (file or
+// articulation) and the element (link, joint, index).
+class ModelError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct InertialSpec {
+  double mass = 0.0;
+  // COM position and the orientation of the inertia axes, in the link frame.
+  Eigen::Isometry3d origin = Eigen::Isometry3d::Identity();
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();  // about the COM, in `origin` axes
+};
+
+struct MimicSpec {
+  std::string leader_joint;  // empty: no mimic
+  double multiplier = 1.0;
+  double offset = 0.0;
+};
+
+struct JointSpec {
+  std::string name;
+  JointType type = JointType::Fixed;
+  // The joint frame in the parent link frame (URDF <origin>).
+  Eigen::Isometry3d origin = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();  // Revolute/Prismatic, in the joint frame
+  bool limited = false;                             // position limits apply
+  double lower = -Model::kInfinity;
+  double upper = Model::kInfinity;
+  double velocity_limit = Model::kInfinity;
+  double effort_limit = Model::kInfinity;
+  double damping = 0.0;
+  double friction = 0.0;
+  double armature = 0.0;
+  MimicSpec mimic;
+};
+
+struct LinkSpec {
+  std::string name;
+  std::string parent;  // empty for the articulation's root link
+  JointSpec joint;     // the joint from `parent` to this link (ignored for the root)
+  InertialSpec inertial;
+  std::vector<Shape> shapes;  // body/frame fields are filled in by the builder; pose in the link frame
+};
+
+struct ArticulationSpec {
+  std::string name;    // used in error messages and lookups
+  std::string source;  // file it came from, if any (error messages)
+  bool floating_base = false;  // root hangs on a Free joint, else fixed to the world
+  Eigen::Isometry3d root_pose = Eigen::Isometry3d::Identity();  // fixed base: root link in the world
+  std::vector<LinkSpec> links;  // parent-first
+};
+
+struct BuildOptions {
+  // Turn the warnings for tolerated imperfections (massless frames, point
+  // masses, triangle-inequality violations) into errors.
+  bool strict = false;
+  // Relative size below which a negative inertia eigenvalue counts as
+  // round-off (clamped for checks, kept as written) rather than an error.
+  double inertia_eigen_tolerance = 1e-12;
+};
+
+class ModelBuilder {
+ public:
+  explicit ModelBuilder(BuildOptions options = {});
+
+  // Validates the articulation and appends it to the forest; returns its index.
+  // Throws ModelError naming the articulation (and source) and element.
+  int add_articulation(const ArticulationSpec& spec);
+
+  void set_gravity(const Eigen::Vector3d& gravity);
+
+  // Fuses fixed joints, orients body frames so joint axes are z, lays out
+  // DOFs in low-level order and builds the name maps.
+  Model finalize() const;
+
+  // Warnings collected so far, each naming its source and element.
+  const std::vector<std::string>& warnings() const { return warnings_; }
+
+ private:
+  void warn_or_throw(const std::string& message);
+
+  BuildOptions options_;
+  Eigen::Vector3d gravity_{0.0, 0.0, -9.81};
+  std::vector<ArticulationSpec> articulations_;
+  std::vector<std::string> warnings_;
+};
+
+}  // namespace lockstep
