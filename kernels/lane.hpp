@@ -117,6 +117,11 @@ inline L select(const mask_t<L>& m, const L& a, const L& b) {
   if constexpr (is_scalar_v<L>) return m ? a : b;
   else return xsimd::select(m, a, b);
 }
+template <class L>
+inline L atan2(const L& y, const L& x) {
+  if constexpr (is_scalar_v<L>) return std::atan2(y, x);
+  else return xsimd::atan2(y, x);
+}
 // True in lanes that hold a finite number.
 template <class L>
 inline mask_t<L> is_finite(const L& x) {

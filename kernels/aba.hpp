@@ -1,0 +1,125 @@
+// Articulated-body forward dynamics over one block (RBDA Table 7.1), with the
+// joint armature added to D = S^T IA S:
+//   qacc = (M + diag(armature))^-1 (tau - bias + sum_i J_i^T F_i).
+#pragma once
+
+#include "kernels/body_terms.hpp"
+#include "kernels/kinematics.hpp"
+
+namespace lockstep {
+
+// Inverse of a small symmetric positive-definite matrix (n x n, row-major),
+// by Gauss-Jordan elimination without pivoting (safe for SPD matrices).
+template <class L>
+inline void spd_inverse(int n, const L* D, L* Dinv) {
+  L a[36];
+  for (int k = 0; k < n * n; ++k) a[k] = D[k];
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) Dinv[r * n + c] = L(lane::scalar_t<L>(r == c ? 1 : 0));
+  for (int p = 0; p < n; ++p) {
+    const L inv = L(lane::scalar_t<L>(1)) / a[p * n + p];
+    for (int c = 0; c < n; ++c) {
+      a[p * n + c] = a[p * n + c] * inv;
+      Dinv[p * n + c] = Dinv[p * n + c] * inv;
+    }
+    for (int r = 0; r < n; ++r) {
+      if (r == p) continue;
+      const L f = a[r * n + p];
+      for (int c = 0; c < n; ++c) {
+        a[r * n + c] = lane::fnmadd(f, a[p * n + c], a[r * n + c]);
+        Dinv[r * n + c] = lane::fnmadd(f, Dinv[p * n + c], Dinv[r * n + c]);
+      }
+    }
+  }
+}
+
+// Needs ws.local (joint_transforms) and, with a wrench, ws.world.
+// qacc_out: (nv) per lane.
+template <class L>
+void aba(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in, Workspace<L>& ws,
+         lane::scalar_t<L>* qacc_out) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  // pass 1: velocities, velocity-product accelerations, rigid inertias and bias forces
+  body_velocities<L>(km, in.v, ws);
+  for (int b = 0; b < km.nbody; ++b) {
+    const BodyInertia<L> I = load_body_inertia<L>(in.inertia, b);
+    const Vec6<L>& v = ws.velocity[b];
+    ws.inertia[b] = rigid_inertia(I);
+    Vec6<L> pA = spatial::force_cross(v, rigid_mul(I, v));
+    if (in.wrench) pA = spatial::sub(pA, body_wrench<L>(in.wrench, b, ws.world[b], I.com));
+    ws.force[b] = pA;
+  }
+  // pass 2 (leaves to roots): articulated inertias IA and bias forces pA
+  for (int b = km.nbody - 1; b >= 0; --b) {
+    int axes[6];
+    const int n = joint_axes(km.body_joint[b], axes);
+    const int dof0 = km.body_dof_offset[b];
+    Inertia6<L>& IA = ws.inertia[b];
+    const Vec6<L>& pA = ws.force[b];
+    L* U = &ws.joint_U[6 * dof0];  // U = IA S, column k at U + 6k
+    L D[36];
+    for (int k = 0; k < n; ++k) {
+      for (int r = 0; r < 6; ++r) U[6 * k + r] = spatial::at(IA, r, axes[k]);
+      const T tau = 0;
+      const L tau_k = in.tau ? lane::load<L>(in.tau + (dof0 + k) * W) : L(tau);
+      ws.joint_u[dof0 + k] = tau_k - pA.e[axes[k]];
+    }
+    for (int k = 0; k < n; ++k)
+      for (int l = 0; l < n; ++l) D[k * n + l] = U[6 * l + axes[k]];
+    for (int k = 0; k < n; ++k) D[k * n + k] = D[k * n + k] + L(km.dof_armature[dof0 + k]);
+    L* Dinv = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
+    if (n == 1) Dinv[0] = L(T(1)) / D[0];
+    else spd_inverse(n, D, Dinv);
+
+    const int parent = km.body_parent[b];
+    if (parent < 0) continue;
+    // Ia = IA - U D^-1 U^T;  pa = pA + Ia c + U D^-1 u   (RBDA eq. 7.42-7.43)
+    L UDinv[36];  // (6 x n)
+    for (int r = 0; r < 6; ++r)
+      for (int l = 0; l < n; ++l) {
+        L s = U[r] * Dinv[l];
+        for (int k = 1; k < n; ++k) s = lane::fmadd(U[6 * k + r], Dinv[k * n + l], s);
+        UDinv[r * n + l] = s;
+      }
+    Inertia6<L> Ia = IA;
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) {
+        L& e = spatial::at(Ia, r, c);
+        for (int k = 0; k < n; ++k) e = lane::fnmadd(UDinv[r * n + k], U[6 * k + c], e);
+      }
+    Vec6<L> pa = spatial::add(pA, spatial::mul(Ia, ws.bias_accel[b]));
+    for (int r = 0; r < 6; ++r)
+      for (int k = 0; k < n; ++k) pa.e[r] = lane::fmadd(UDinv[r * n + k], ws.joint_u[dof0 + k], pa.e[r]);
+    spatial::add_to(ws.inertia[parent], spatial::inertia_to_parent(ws.local[b], Ia));
+    ws.force[parent] = spatial::add(ws.force[parent], spatial::force_to_parent(ws.local[b], pa));
+  }
+  // pass 3 (roots to leaves): accelerations
+  const Vec6<L> a0 = world_acceleration<L>(in.gravity);
+  for (int b = 0; b < km.nbody; ++b) {
+    int axes[6];
+    const int n = joint_axes(km.body_joint[b], axes);
+    const int dof0 = km.body_dof_offset[b];
+    const int parent = km.body_parent[b];
+    const Vec6<L> a_parent = parent < 0 ? a0 : ws.accel[parent];
+    Vec6<L> a = spatial::add(spatial::motion_to_child(ws.local[b], a_parent), ws.bias_accel[b]);
+    const L* U = &ws.joint_U[6 * dof0];
+    const L* Dinv = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
+    L rhs[6], qdd[6];
+    for (int k = 0; k < n; ++k) {
+      L s = ws.joint_u[dof0 + k];
+      for (int r = 0; r < 6; ++r) s = lane::fnmadd(U[6 * k + r], a.e[r], s);
+      rhs[k] = s;
+    }
+    for (int k = 0; k < n; ++k) {
+      L s = Dinv[k * n] * rhs[0];
+      for (int l = 1; l < n; ++l) s = lane::fmadd(Dinv[k * n + l], rhs[l], s);
+      qdd[k] = s;
+      lane::store(s, qacc_out + (dof0 + k) * W);
+    }
+    for (int k = 0; k < n; ++k) a.e[axes[k]] = a.e[axes[k]] + qdd[k];
+    ws.accel[b] = a;
+  }
+}
+
+}  // namespace lockstep

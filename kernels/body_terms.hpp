@@ -1,0 +1,62 @@
+// Per-body terms shared by the dynamics kernels: the body's inertial
+// parameters for this block, its external wrench in body coordinates, and the
+// world acceleration that stands in for gravity.
+#pragma once
+
+#include "kernels/kernel_model.hpp"
+
+namespace lockstep {
+
+template <class L>
+struct BodyInertia {
+  L mass;
+  Vec3<L> com;
+  L rot[6];  // about the COM, xx yy zz xy xz yz
+};
+
+template <class L>
+inline BodyInertia<L> load_body_inertia(const lane::scalar_t<L>* inertia, int body) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const lane::scalar_t<L>* p = inertia + kInertiaParams * body * W;
+  BodyInertia<L> I;
+  I.mass = lane::load<L>(p);
+  I.com = {lane::load<L>(p + W), lane::load<L>(p + 2 * W), lane::load<L>(p + 3 * W)};
+  for (int k = 0; k < 6; ++k) I.rot[k] = lane::load<L>(p + (kInertiaRot + k) * W);
+  return I;
+}
+
+template <class L>
+inline Vec6<L> rigid_mul(const BodyInertia<L>& I, const Vec6<L>& a) {
+  return spatial::rigid_mul(I.mass, I.com, I.rot, a);
+}
+
+template <class L>
+inline Inertia6<L> rigid_inertia(const BodyInertia<L>& I) {
+  return spatial::rigid_inertia(I.mass, I.com, I.rot);
+}
+
+// The user's wrench on a body (world axes, torque about the COM) as a spatial
+// force in body coordinates about the body origin: f = R^T F, n = R^T N + c x f.
+template <class L>
+inline Vec6<L> body_wrench(const lane::scalar_t<L>* wrench, int body, const Transform<L>& world, const Vec3<L>& com) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const lane::scalar_t<L>* p = wrench + 6 * body * W;
+  const Vec3<L> F = {lane::load<L>(p), lane::load<L>(p + W), lane::load<L>(p + 2 * W)};
+  const Vec3<L> N = {lane::load<L>(p + 3 * W), lane::load<L>(p + 4 * W), lane::load<L>(p + 5 * W)};
+  const Vec3<L> f = spatial::rotate_back(world.R, F);
+  return spatial::make6(f, spatial::add(spatial::rotate_back(world.R, N), spatial::cross(com, f)));
+}
+
+// Gravity enters as a fictitious world acceleration a0 = [-g; 0] of the base
+// (RBDA sec. 5.3), which also makes the bias force include gravity.
+template <class L>
+inline Vec6<L> world_acceleration(const lane::scalar_t<L>* gravity) {
+  constexpr std::size_t W = lane::width_v<L>;
+  Vec6<L> a0;
+  for (int k = 0; k < 6; ++k) a0.e[k] = L(0);
+  if (gravity)
+    for (int k = 0; k < 3; ++k) a0.e[k] = -lane::load<L>(gravity + k * W);
+  return a0;
+}
+
+}  // namespace lockstep

@@ -1,0 +1,152 @@
+// The configuration manifold: q has a quaternion (w, x, y, z) for every Free
+// and Spherical joint, so positions are integrated by the exponential map and
+// compared by its logarithm, never by adding to the quaternion.
+#pragma once
+
+#include "kernels/kinematics.hpp"
+
+namespace lockstep {
+
+template <class L>
+struct Quaternion {
+  L w, x, y, z;
+};
+
+template <class L>
+inline Quaternion<L> quaternion_multiply(const Quaternion<L>& a, const Quaternion<L>& b) {
+  return {a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z, a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y,
+          a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x, a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w};
+}
+
+// exp of the rotation vector phi as a unit quaternion: (cos h, sin(h)/h phi/2),
+// h = |phi|/2. sin(h)/h by its Taylor series below h = 1e-2 (float) or
+// 1e-4 (double), where the series error is below the working precision.
+template <class L>
+inline Quaternion<L> quaternion_exp(const Vec3<L>& phi) {
+  using T = lane::scalar_t<L>;
+  const L h2 = T(0.25) * spatial::dot(phi, phi);
+  const L h = lane::sqrt(h2);
+  L s, c;
+  lane::sincos(h, s, c);
+  const T small = std::is_same_v<T, float> ? T(1e-2) : T(1e-4);
+  const L sinc_series = lane::fmadd(h2, lane::fmadd(h2, L(T(1.0 / 120.0)), L(T(-1.0 / 6.0))), L(T(1)));
+  const L sinc = lane::select(h < L(small), sinc_series, s / lane::max(h, L(small)));
+  const L k = T(0.5) * sinc;
+  return {c, k * phi.x, k * phi.y, k * phi.z};
+}
+
+// Rotation vector of a unit quaternion (the shorter way round).
+template <class L>
+inline Vec3<L> quaternion_log(const Quaternion<L>& q) {
+  using T = lane::scalar_t<L>;
+  const L sign = lane::select(q.w < L(T(0)), L(T(-1)), L(T(1)));
+  const Vec3<L> u = {sign * q.x, sign * q.y, sign * q.z};
+  const L n = lane::sqrt(spatial::dot(u, u));
+  const L half_angle = lane::atan2(n, sign * q.w);
+  // 2 h / sin(h) ~ 2 (1 + h^2/6) for small n, where n ~ sin(h).
+  const T small = std::is_same_v<T, float> ? T(1e-2) : T(1e-4);
+  const L ratio = lane::select(n < L(small), T(2) * lane::fmadd(n * n, L(T(1.0 / 6.0)), L(T(1))),
+                               T(2) * half_angle / lane::max(n, L(small)));
+  return spatial::scale(ratio, u);
+}
+
+template <class L>
+inline Quaternion<L> load_quaternion(const lane::scalar_t<L>* q) {
+  constexpr std::size_t W = lane::width_v<L>;
+  return {lane::load<L>(q), lane::load<L>(q + W), lane::load<L>(q + 2 * W), lane::load<L>(q + 3 * W)};
+}
+
+template <class L>
+inline void store_normalized(const Quaternion<L>& q, lane::scalar_t<L>* out) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const L inv = L(lane::scalar_t<L>(1)) / lane::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
+  lane::store(q.w * inv, out);
+  lane::store(q.x * inv, out + W);
+  lane::store(q.y * inv, out + 2 * W);
+  lane::store(q.z * inv, out + 3 * W);
+}
+
+// q_out = q (+) v dt: 1-DOF joints add, a Spherical joint turns its quaternion
+// by exp(w dt) on the right (w in the body frame), a Free joint moves by
+// R v_lin dt and turns likewise. Quaternions are renormalised. q_out may be q.
+template <class L>
+void integrate(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* q, const lane::scalar_t<L>* v,
+               lane::scalar_t<L> dt, lane::scalar_t<L>* q_out) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const L h(dt);
+  for (int b = 0; b < km.nbody; ++b) {
+    const lane::scalar_t<L>* qb = q + km.body_q_offset[b] * W;
+    const lane::scalar_t<L>* vb = v + km.body_dof_offset[b] * W;
+    lane::scalar_t<L>* ob = q_out + km.body_q_offset[b] * W;
+    switch (km.body_joint[b]) {
+      case JointType::Revolute:
+      case JointType::Prismatic:
+        lane::store(lane::fmadd(lane::load<L>(vb), h, lane::load<L>(qb)), ob);
+        break;
+      case JointType::Spherical: {
+        const Vec3<L> w = {lane::load<L>(vb) * h, lane::load<L>(vb + W) * h, lane::load<L>(vb + 2 * W) * h};
+        store_normalized(quaternion_multiply(load_quaternion<L>(qb), quaternion_exp(w)), ob);
+        break;
+      }
+      case JointType::Free: {
+        const Quaternion<L> rot = load_quaternion<L>(qb + 3 * W);
+        const Mat3<L> R = quaternion_rotation(rot.w, rot.x, rot.y, rot.z);
+        const Vec3<L> dp = spatial::rotate(R, Vec3<L>{lane::load<L>(vb) * h, lane::load<L>(vb + W) * h,
+                                                      lane::load<L>(vb + 2 * W) * h});
+        const Vec3<L> w = {lane::load<L>(vb + 3 * W) * h, lane::load<L>(vb + 4 * W) * h, lane::load<L>(vb + 5 * W) * h};
+        const Quaternion<L> turned = quaternion_multiply(rot, quaternion_exp(w));
+        for (int k = 0; k < 3; ++k) {
+          const L e = k == 0 ? dp.x : k == 1 ? dp.y : dp.z;
+          lane::store(lane::load<L>(qb + k * W) + e, ob + k * W);
+        }
+        store_normalized(turned, ob + 3 * W);
+        break;
+      }
+      case JointType::Fixed:
+        break;
+    }
+  }
+}
+
+// v_out such that integrate(q0, v_out, 1) = q1 (up to round-off): the
+// inverse of integrate on the manifold.
+template <class L>
+void difference(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* q0, const lane::scalar_t<L>* q1,
+                lane::scalar_t<L>* v_out) {
+  constexpr std::size_t W = lane::width_v<L>;
+  for (int b = 0; b < km.nbody; ++b) {
+    const int qo = km.body_q_offset[b] * W, vo = km.body_dof_offset[b] * W;
+    switch (km.body_joint[b]) {
+      case JointType::Revolute:
+      case JointType::Prismatic:
+        lane::store(lane::load<L>(q1 + qo) - lane::load<L>(q0 + qo), v_out + vo);
+        break;
+      case JointType::Spherical:
+      case JointType::Free: {
+        const int rot = km.body_joint[b] == JointType::Free ? 3 : 0;
+        const int ang = km.body_joint[b] == JointType::Free ? 3 : 0;
+        const Quaternion<L> a = load_quaternion<L>(q0 + qo + rot * W);
+        const Quaternion<L> c = load_quaternion<L>(q1 + qo + rot * W);
+        const Vec3<L> w = quaternion_log(quaternion_multiply(Quaternion<L>{a.w, -a.x, -a.y, -a.z}, c));
+        lane::store(w.x, v_out + vo + ang * W);
+        lane::store(w.y, v_out + vo + (ang + 1) * W);
+        lane::store(w.z, v_out + vo + (ang + 2) * W);
+        if (km.body_joint[b] == JointType::Free) {
+          const Mat3<L> R = quaternion_rotation(a.w, a.x, a.y, a.z);
+          const Vec3<L> dp = {lane::load<L>(q1 + qo) - lane::load<L>(q0 + qo),
+                              lane::load<L>(q1 + qo + W) - lane::load<L>(q0 + qo + W),
+                              lane::load<L>(q1 + qo + 2 * W) - lane::load<L>(q0 + qo + 2 * W)};
+          const Vec3<L> local = spatial::rotate_back(R, dp);
+          lane::store(local.x, v_out + vo);
+          lane::store(local.y, v_out + vo + W);
+          lane::store(local.z, v_out + vo + 2 * W);
+        }
+        break;
+      }
+      case JointType::Fixed:
+        break;
+    }
+  }
+}
+
+}  // namespace lockstep

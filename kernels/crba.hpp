@@ -1,0 +1,115 @@
+// Joint-space mass matrix by the composite-rigid-body algorithm (RBDA
+// Table 6.2), and its inverse through the tree-sparse factorisation
+// M = L^T D L (RBDA sec. 6.5, Tables 6.3 and 6.4).
+#pragma once
+
+#include "kernels/body_terms.hpp"
+#include "kernels/kinematics.hpp"
+
+namespace lockstep {
+
+// Needs ws.local. M_out: (nv x nv) per lane, row-major, armature on the
+// diagonal; entries between DOFs on different branches are zero.
+template <class L>
+void crba(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* inertia, Workspace<L>& ws,
+          lane::scalar_t<L>* M_out) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  for (int b = 0; b < km.nbody; ++b) ws.inertia[b] = rigid_inertia(load_body_inertia<L>(inertia, b));
+  // composite inertias, leaves to roots
+  for (int b = km.nbody - 1; b >= 0; --b) {
+    const int parent = km.body_parent[b];
+    if (parent >= 0) spatial::add_to(ws.inertia[parent], spatial::inertia_to_parent(ws.local[b], ws.inertia[b]));
+  }
+  for (int k = 0; k < nv * nv; ++k) lane::store(L(0), M_out + k * W);
+  auto M = [&](int r, int c) { return M_out + (r * nv + c) * W; };
+  for (int b = 0; b < km.nbody; ++b) {
+    int axes[6];
+    const int n = joint_axes(km.body_joint[b], axes);
+    const int dof0 = km.body_dof_offset[b];
+    // F = Ic S, then carried to each ancestor j as ^jX_b^T F: M_jb = S_j^T F.
+    Vec6<L> F[6];
+    for (int k = 0; k < n; ++k)
+      for (int r = 0; r < 6; ++r) F[k].e[r] = spatial::at(ws.inertia[b], r, axes[k]);
+    for (int k = 0; k < n; ++k)
+      for (int l = 0; l < n; ++l) {
+        L m = F[l].e[axes[k]];
+        if (k == l) m = m + L(km.dof_armature[dof0 + k]);
+        lane::store(m, M(dof0 + k, dof0 + l));
+      }
+    for (int j = b; km.body_parent[j] >= 0;) {
+      for (int l = 0; l < n; ++l) F[l] = spatial::force_to_parent(ws.local[j], F[l]);
+      j = km.body_parent[j];
+      int axes_j[6];
+      const int nj = joint_axes(km.body_joint[j], axes_j);
+      const int dofj = km.body_dof_offset[j];
+      for (int k = 0; k < nj; ++k)
+        for (int l = 0; l < n; ++l) {
+          const L m = F[l].e[axes_j[k]];
+          lane::store(m, M(dofj + k, dof0 + l));
+          lane::store(m, M(dof0 + l, dofj + k));
+        }
+    }
+  }
+}
+
+// In place: M (nv x nv per lane, as crba writes it) becomes its L^T D L
+// factors, L unit lower triangular in the strict lower part, D on the
+// diagonal. Uses the tree sparsity through dof_parent.
+template <class L>
+void ltdl_factor(const KernelModel<lane::scalar_t<L>>& km, lane::scalar_t<L>* H) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  auto at = [&](int r, int c) { return H + (r * nv + c) * W; };
+  for (int k = nv - 1; k >= 0; --k) {
+    const L Hkk = lane::load<L>(at(k, k));
+    for (int i = km.dof_parent[k]; i >= 0; i = km.dof_parent[i]) {
+      const L a = lane::load<L>(at(k, i)) / Hkk;
+      for (int j = i; j >= 0; j = km.dof_parent[j])
+        lane::store(lane::fnmadd(a, lane::load<L>(at(k, j)), lane::load<L>(at(i, j))), at(i, j));
+      lane::store(a, at(k, i));
+    }
+  }
+}
+
+// Solves (L^T D L) x = b in place on x (nv per lane), with H from ltdl_factor.
+template <class L>
+void ltdl_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  auto at = [&](int r, int c) { return H + (r * nv + c) * W; };
+  for (int k = nv - 1; k >= 0; --k) {  // L^T y = b
+    const L yk = lane::load<L>(x + k * W);
+    for (int i = km.dof_parent[k]; i >= 0; i = km.dof_parent[i])
+      lane::store(lane::fnmadd(lane::load<L>(at(k, i)), yk, lane::load<L>(x + i * W)), x + i * W);
+  }
+  for (int k = 0; k < nv; ++k) lane::store(lane::load<L>(x + k * W) / lane::load<L>(at(k, k)), x + k * W);
+  for (int k = 0; k < nv; ++k) {  // L x = z
+    L xk = lane::load<L>(x + k * W);
+    for (int i = km.dof_parent[k]; i >= 0; i = km.dof_parent[i]) xk = lane::fnmadd(lane::load<L>(at(k, i)), lane::load<L>(x + i * W), xk);
+    lane::store(xk, x + k * W);
+  }
+}
+
+// M^-1 (nv x nv per lane) from the configuration: CRBA, factorisation, and
+// one solve per column. Uses ws.matrix for the factors; needs ws.local.
+template <class L>
+void inverse_mass_matrix(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* inertia, Workspace<L>& ws,
+                         lane::scalar_t<L>* Minv_out) {
+  constexpr std::size_t W = lane::width_v<L>;
+  using T = lane::scalar_t<L>;
+  const int nv = km.nv;
+  // The factors live in the caller's output until the columns overwrite it;
+  // ws.matrix holds them meanwhile.
+  T* H = reinterpret_cast<T*>(ws.matrix.data());
+  crba<L>(km, inertia, ws, H);
+  ltdl_factor<L>(km, H);
+  T* column = reinterpret_cast<T*>(ws.vector.data());
+  for (int c = 0; c < nv; ++c) {
+    for (int r = 0; r < nv; ++r) lane::store(L(T(r == c ? 1 : 0)), column + r * W);
+    ltdl_solve<L>(km, H, column);
+    for (int r = 0; r < nv; ++r) lane::store(lane::load<L>(column + r * W), Minv_out + (r * nv + c) * W);
+  }
+}
+
+}  // namespace lockstep

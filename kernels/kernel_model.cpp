@@ -1,0 +1,34 @@
+#include "kernels/kernel_model.hpp"
+
+namespace lockstep {
+
+namespace {
+template <class T>
+void append_placement(std::vector<T>& out, const Eigen::Isometry3d& X) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out.push_back(static_cast<T>(X.linear()(r, c)));
+  for (int k = 0; k < 3; ++k) out.push_back(static_cast<T>(X.translation()[k]));
+}
+}  // namespace
+
+template <class T>
+KernelModel<T>::KernelModel(const Model& model)
+    : nbody(model.nbody), nq(model.nq), nv(model.nv), nframe(static_cast<int>(model.frame_name.size())),
+      body_parent(model.body_parent), body_joint(model.body_joint), body_q_offset(model.body_q_offset),
+      body_dof_offset(model.body_dof_offset), dof_parent(model.dof_parent), frame_body(model.frame_body) {
+  for (int b = 0; b < nbody; ++b) {
+    append_placement(body_placement, model.body_placement[b]);
+    const Eigen::Matrix3d& I = model.body_inertia[b];
+    const double params[kInertiaParams] = {model.body_mass[b], model.body_com[b].x(), model.body_com[b].y(),
+                                           model.body_com[b].z(), I(0, 0), I(1, 1), I(2, 2), I(0, 1), I(0, 2),
+                                           I(1, 2)};
+    for (double p : params) default_inertia.push_back(static_cast<T>(p));
+  }
+  for (double a : model.dof_armature) dof_armature.push_back(static_cast<T>(a));
+  for (const Eigen::Isometry3d& X : model.frame_placement) append_placement(frame_placement, X);
+}
+
+template struct KernelModel<float>;
+template struct KernelModel<double>;
+
+}  // namespace lockstep

@@ -1,0 +1,101 @@
+// What the kernels read of a Model, flattened into arrays of the working
+// precision T, plus the per-block inputs and the per-block scratch.
+#pragma once
+
+#include "kernels/spatial.hpp"
+#include "layout/model.hpp"
+
+#include <vector>
+
+namespace lockstep {
+
+// Per-copy inertial parameters of one body, as laid out in the batch:
+// mass, COM (x y z) in the body frame, rotational inertia about the COM
+// (xx yy zz xy xz yz) in body axes.
+inline constexpr int kInertiaParams = 10;
+inline constexpr int kInertiaMass = 0;
+inline constexpr int kInertiaCom = 1;
+inline constexpr int kInertiaRot = 4;
+
+template <class T>
+struct KernelModel {
+  int nbody = 0, nq = 0, nv = 0, nframe = 0;
+  std::vector<int> body_parent;       // (nbody)
+  std::vector<JointType> body_joint;  // (nbody)
+  std::vector<int> body_q_offset;     // (nbody)
+  std::vector<int> body_dof_offset;   // (nbody)
+  std::vector<T> body_placement;      // (nbody x 12): R row-major (9), p (3); joint frame in parent body
+  std::vector<int> dof_parent;        // (nv)
+  std::vector<T> dof_armature;        // (nv)
+  std::vector<int> frame_body;        // (nframe), -1: world
+  std::vector<T> frame_placement;     // (nframe x 12), in the body frame (or the world)
+  std::vector<T> default_inertia;     // (nbody x kInertiaParams), the model's values
+
+  explicit KernelModel(const Model& model);
+};
+
+// The spatial axes a joint frees, as indices into [v; w] of the child body
+// frame: every motion subspace S is a set of unit columns.
+inline int joint_axes(JointType type, int axes[6]) {
+  switch (type) {
+    case JointType::Revolute: axes[0] = 5; return 1;
+    case JointType::Prismatic: axes[0] = 2; return 1;
+    case JointType::Spherical: axes[0] = 3; axes[1] = 4; axes[2] = 5; return 3;
+    case JointType::Free:
+      for (int k = 0; k < 6; ++k) axes[k] = k;
+      return 6;
+    case JointType::Fixed: return 0;
+  }
+  return 0;
+}
+
+// Inputs of a kernel for one block: arrays laid out [field][lane], width
+// lanes per field. A null pointer means "all zero" (no gravity, no wrench...).
+template <class T>
+struct BlockInputs {
+  const T* q = nullptr;        // (nq)
+  const T* v = nullptr;        // (nv)
+  const T* qacc = nullptr;     // (nv) joint accelerations (inverse dynamics)
+  const T* tau = nullptr;      // (nv) joint forces (forward dynamics)
+  const T* wrench = nullptr;   // (nbody x 6) world [force; torque about the body COM]
+  const T* inertia = nullptr;  // (nbody x kInertiaParams); required
+  const T* gravity = nullptr;  // (3) world gravity vector
+};
+
+// Scratch for one block, sized for a model once; kernels never allocate.
+template <class L>
+struct Workspace {
+  std::vector<Transform<L>> local;    // (nbody) body in parent-body coordinates
+  std::vector<Transform<L>> world;    // (nbody) body in world coordinates
+  std::vector<Vec6<L>> velocity;      // (nbody) spatial velocity, body coordinates
+  std::vector<Vec6<L>> accel;         // (nbody) spatial acceleration, body coordinates
+  std::vector<Vec6<L>> bias_accel;    // (nbody) c = v x vJ
+  std::vector<Vec6<L>> force;         // (nbody) RNEA force / ABA articulated bias pA
+  std::vector<Inertia6<L>> inertia;   // (nbody) articulated or composite inertia
+  std::vector<L> joint_U;             // (nv x 6) U = IA S, one 6-column per DOF
+  std::vector<L> joint_Dinv;          // (sum over bodies of ndof^2) (S^T IA S + armature)^-1
+  std::vector<int> joint_Dinv_offset; // (nbody)
+  std::vector<L> joint_u;             // (nv) u = tau - S^T pA
+  std::vector<L> matrix;              // (nv x nv) mass matrix / factorisation
+  std::vector<L> vector;              // (nv) temporary
+
+  template <class T>
+  explicit Workspace(const KernelModel<T>& km);
+};
+
+template <class L>
+template <class T>
+Workspace<L>::Workspace(const KernelModel<T>& km)
+    : local(km.nbody), world(km.nbody), velocity(km.nbody), accel(km.nbody), bias_accel(km.nbody),
+      force(km.nbody), inertia(km.nbody), joint_U(6 * km.nv), joint_Dinv_offset(km.nbody), joint_u(km.nv),
+      matrix(km.nv * km.nv), vector(km.nv) {
+  int offset = 0;
+  for (int b = 0; b < km.nbody; ++b) {
+    joint_Dinv_offset[b] = offset;
+    const int n = joint_nv(km.body_joint[b]);
+    offset += n * n;
+  }
+  joint_Dinv.resize(offset);
+}
+
+}  // namespace lockstep
