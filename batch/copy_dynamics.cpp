@@ -1,0 +1,154 @@
+#include "batch/copy_dynamics.hpp"
+
+#include "batch/batch_dynamics.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace lockstep {
+
+const char* precision_name(Precision precision) { return precision == Precision::Float ? "float" : "double"; }
+
+namespace {
+
+// One copy on the scalar reference lane of precision T.
+template <class T>
+class OneCopy {
+ public:
+  explicit OneCopy(const Model& model) : dynamics_(model), state_(dynamics_.make_state(1)) {}
+
+  void set_q(const Eigen::VectorXd& q) { set(state_.q, q, "q"); }
+  void set_v(const Eigen::VectorXd& v) { set(state_.v, v, "v"); }
+  void set_tau(const Eigen::VectorXd& tau) { set(state_.tau, tau, "tau"); }
+  void set_qacc(const Eigen::VectorXd& a) { set(state_.qacc, a, "qacc"); }
+  void set_wrench(const Eigen::MatrixXd* wrench) {
+    const int nbody = dynamics_.model().nbody;
+    if (!wrench) {
+      state_.wrench.set(0, Eigen::VectorXd::Zero(6 * nbody));
+      return;
+    }
+    if (wrench->rows() != nbody || wrench->cols() != 6)
+      throw std::invalid_argument("link_wrench: expected " + std::to_string(nbody) + " x 6, got " +
+                                  std::to_string(wrench->rows()) + " x " + std::to_string(wrench->cols()));
+    Eigen::VectorXd flat(6 * nbody);
+    for (int b = 0; b < nbody; ++b) flat.segment<6>(6 * b) = wrench->row(b).transpose();
+    state_.wrench.set(0, flat);
+  }
+
+  // Runs f(dynamics, state, out) into an output array of `size` values.
+  template <class F>
+  Eigen::VectorXd run(F&& f, int size) const {
+    BatchArray<T> out = dynamics_.make_array(1, size);
+    f(dynamics_, state_, out);
+    return out.get(0);
+  }
+
+ private:
+  void set(BatchArray<T>& array, const Eigen::VectorXd& values, const char* what) {
+    if (values.size() != array.size())
+      throw std::invalid_argument(std::string(what) + ": expected " + std::to_string(array.size()) + " values, got " +
+                                  std::to_string(values.size()));
+    array.set(0, values);
+  }
+
+  BatchDynamics<T> dynamics_;
+  BatchState<T> state_;
+};
+
+Eigen::MatrixXd square(const Eigen::VectorXd& flat, int n) {
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(flat.data(), n, n);
+}
+
+std::vector<Eigen::Isometry3d> poses(const Eigen::VectorXd& flat) {
+  std::vector<Eigen::Isometry3d> out(flat.size() / 12);
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) X.linear()(r, c) = flat[12 * i + 3 * r + c];
+    X.translation() = flat.segment<3>(12 * i + 9);
+    out[i] = X;
+  }
+  return out;
+}
+
+}  // namespace
+
+struct CopyDynamics::Impl {
+  std::unique_ptr<OneCopy<float>> single;
+  std::unique_ptr<OneCopy<double>> twin;  // exactly one of the two is set
+  template <class F>
+  Eigen::VectorXd visit(F&& f) { return single ? f(*single) : f(*twin); }
+};
+
+CopyDynamics::CopyDynamics(const Model& model, Precision precision)
+    : model_(&model), precision_(precision), impl_(std::make_unique<Impl>()) {
+  if (precision == Precision::Float) impl_->single = std::make_unique<OneCopy<float>>(model);
+  else impl_->twin = std::make_unique<OneCopy<double>>(model);
+}
+CopyDynamics::~CopyDynamics() = default;
+CopyDynamics::CopyDynamics(CopyDynamics&&) noexcept = default;
+CopyDynamics& CopyDynamics::operator=(CopyDynamics&&) noexcept = default;
+
+// Sets the copy's inputs (q, then v, tau, qacc and wrench or zero), then
+// runs one BatchDynamics method into `size` values.
+#define LOCKSTEP_ONE_COPY(METHOD, SIZE, Q, V, TAU, QACC, WRENCH)                                       \
+  impl_->visit([&](auto& c) {                                                                          \
+    const int nv = model_->nv;                                                                         \
+    c.set_q(Q);                                                                                        \
+    c.set_v(V);                                                                                        \
+    c.set_tau(TAU);                                                                                    \
+    c.set_qacc(QACC);                                                                                  \
+    c.set_wrench(WRENCH);                                                                              \
+    (void)nv;                                                                                          \
+    return c.run([&](const auto& dyn, const auto& state, auto& out) { dyn.METHOD(state, out); }, SIZE); \
+  })
+
+namespace {
+Eigen::VectorXd zeros(int n) { return Eigen::VectorXd::Zero(n); }
+}  // namespace
+
+std::vector<Eigen::Isometry3d> CopyDynamics::frame_poses(const Eigen::VectorXd& q) const {
+  const int n = 12 * static_cast<int>(model_->frame_name.size());
+  return poses(LOCKSTEP_ONE_COPY(frame_poses, n, q, zeros(nv), zeros(nv), zeros(nv), nullptr));
+}
+std::vector<Eigen::Isometry3d> CopyDynamics::body_poses(const Eigen::VectorXd& q) const {
+  return poses(LOCKSTEP_ONE_COPY(body_poses, 12 * model_->nbody, q, zeros(nv), zeros(nv), zeros(nv), nullptr));
+}
+Eigen::MatrixXd CopyDynamics::mass_matrix(const Eigen::VectorXd& q) const {
+  const int n = model_->nv;
+  return square(LOCKSTEP_ONE_COPY(mass_matrix, n * n, q, zeros(nv), zeros(nv), zeros(nv), nullptr), n);
+}
+Eigen::MatrixXd CopyDynamics::inverse_mass_matrix(const Eigen::VectorXd& q) const {
+  const int n = model_->nv;
+  return square(LOCKSTEP_ONE_COPY(inverse_mass_matrix, n * n, q, zeros(nv), zeros(nv), zeros(nv), nullptr), n);
+}
+Eigen::VectorXd CopyDynamics::bias_force(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const {
+  return LOCKSTEP_ONE_COPY(bias_force, nv, q, v, zeros(nv), zeros(nv), nullptr);
+}
+Eigen::VectorXd CopyDynamics::coriolis_force(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const {
+  return LOCKSTEP_ONE_COPY(coriolis_force, nv, q, v, zeros(nv), zeros(nv), nullptr);
+}
+Eigen::VectorXd CopyDynamics::gravity_force(const Eigen::VectorXd& q) const {
+  return LOCKSTEP_ONE_COPY(gravity_force, nv, q, zeros(nv), zeros(nv), zeros(nv), nullptr);
+}
+Eigen::VectorXd CopyDynamics::external_force(const Eigen::VectorXd& q, const Eigen::MatrixXd& link_wrench) const {
+  return LOCKSTEP_ONE_COPY(external_force, nv, q, zeros(nv), zeros(nv), zeros(nv), &link_wrench);
+}
+Eigen::VectorXd CopyDynamics::inverse_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                                               const Eigen::VectorXd& a, const Eigen::MatrixXd* link_wrench) const {
+  return LOCKSTEP_ONE_COPY(inverse_dynamics, nv, q, v, zeros(nv), a, link_wrench);
+}
+Eigen::VectorXd CopyDynamics::forward_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                                               const Eigen::VectorXd& tau, const Eigen::MatrixXd* link_wrench) const {
+  return LOCKSTEP_ONE_COPY(forward_dynamics, nv, q, v, tau, zeros(nv), link_wrench);
+}
+double CopyDynamics::kinetic_energy(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const {
+  return LOCKSTEP_ONE_COPY(kinetic_energy, 1, q, v, zeros(nv), zeros(nv), nullptr)[0];
+}
+double CopyDynamics::potential_energy(const Eigen::VectorXd& q) const {
+  return LOCKSTEP_ONE_COPY(potential_energy, 1, q, zeros(nv), zeros(nv), zeros(nv), nullptr)[0];
+}
+
+#undef LOCKSTEP_ONE_COPY
+
+}  // namespace lockstep
