@@ -90,8 +90,17 @@ class ModelBuilder {
   // Warnings collected so far, each naming its source and element.
   const std::vector<std::string>& warnings() const { return warnings_; }
 
+  // Appends a warning from an importer (missing mesh files, reinterpreted
+  // limits); never raised to an error by `strict`.
+  void add_warning(const std::string& message) { warnings_.push_back(message); }
+
  private:
   void warn_or_throw(const std::string& message);
+  void check_inertial(const ArticulationSpec& spec, const LinkSpec& link) const;
+  void check_joint(const ArticulationSpec& spec, const LinkSpec& link) const;
+  // The Free root joint's name: the root link's joint.name if given, else
+  // the articulation name + "_root".
+  static std::string root_joint_name(const ArticulationSpec& spec);
 
   BuildOptions options_;
   Eigen::Vector3d gravity_{0.0, 0.0, -9.81};
