@@ -5,6 +5,17 @@
 # (lane::fmadd), so the scalar reference lane and the SIMD lanes round the
 # same way and results do not depend on the compiler's contraction choices.
 add_library(lockstep_flags INTERFACE)
+
+# Debian's xsimd 8.1 target lists "xtl" as a link dependency (the package was
+# built with its optional xtl support), which becomes a failing -lxtl when
+# libxtl-dev is absent. lockstep uses nothing of xtl: an empty stand-in
+# target satisfies the reference. (lockstepConfig.cmake does the same.)
+if(TARGET xsimd AND NOT TARGET xtl)
+  find_package(xtl QUIET)
+  if(NOT TARGET xtl)
+    add_library(xtl INTERFACE IMPORTED)
+  endif()
+endif()
 target_compile_options(lockstep_flags INTERFACE
   -Wall -Wextra -Wpedantic -Wshadow -Wno-unused-parameter)
 
@@ -24,9 +35,36 @@ execute_process(
   OUTPUT_VARIABLE _lockstep_predefined
   RESULT_VARIABLE _lockstep_predefined_rc)
 set(LOCKSTEP_REQUIRED_ISA "")
-foreach(_isa SSE4_2 AVX AVX2 FMA BMI2 AVX512F AVX512BW AVX512DQ AVX512VL AVX512CD)
+# Each name is the compiler's predefined macro without underscores; the CPU
+# check maps it to the __builtin_cpu_supports feature name.
+foreach(_isa SSSE3 SSE4_1 SSE4_2 POPCNT AVX AVX2 FMA BMI BMI2
+             AVX512F AVX512BW AVX512DQ AVX512VL AVX512CD AVX512IFMA AVX512VBMI
+             AVX512VBMI2 AVX512VNNI AVX512BITALG AVX512VPOPCNTDQ AVX512BF16
+             GFNI VPCLMULQDQ)
   if(_lockstep_predefined MATCHES "#define __${_isa}__ 1")
     list(APPEND LOCKSTEP_REQUIRED_ISA ${_isa})
   endif()
 endforeach()
 message(STATUS "lockstep: instruction set extensions required: ${LOCKSTEP_REQUIRED_ISA}")
+
+# The CPU check: an object library compiled for baseline x86-64 (whatever the
+# flags above say), linked into every executable. Its constructor runs before
+# any code built with LOCKSTEP_ARCH_FLAGS and exits with code 3, naming the
+# missing extensions, instead of letting the program die of SIGILL.
+string(REPLACE ";" "," _lockstep_isa_csv "${LOCKSTEP_REQUIRED_ISA}")
+add_library(lockstep_cpu_check OBJECT ${PROJECT_SOURCE_DIR}/tools/cpu_check.cpp)
+target_compile_options(lockstep_cpu_check PRIVATE -march=x86-64 -mtune=generic)
+target_compile_definitions(lockstep_cpu_check PRIVATE
+  LOCKSTEP_REQUIRED_ISA="${_lockstep_isa_csv}"
+  LOCKSTEP_ARCH_FLAGS="${LOCKSTEP_ARCH_FLAGS}")
+target_link_libraries(lockstep_cpu_check PRIVATE lockstep_flags)
+target_include_directories(lockstep_cpu_check PUBLIC $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}>)
+add_library(lockstep::lockstep_cpu_check ALIAS lockstep_cpu_check)
+
+# Where tests and benchmarks find models: the shared real-robot URDFs beside
+# the project, and the project's own bundled models.
+get_filename_component(LOCKSTEP_SHARED_MODELS_DIR "${PROJECT_SOURCE_DIR}/../shared/models" ABSOLUTE)
+add_library(lockstep_model_dirs INTERFACE)
+target_compile_definitions(lockstep_model_dirs INTERFACE
+  LOCKSTEP_SHARED_MODELS_DIR="${LOCKSTEP_SHARED_MODELS_DIR}"
+  LOCKSTEP_MODELS_DIR="${PROJECT_SOURCE_DIR}/models")
