@@ -1,0 +1,102 @@
+#include "tools/state.hpp"
+
+#include <cmath>
+
+namespace lockstep {
+
+namespace {
+
+constexpr double kQuaternionNormTolerance = 1e-3;
+
+// Which part of the state a key belongs to.
+enum class Part { Q, Qd, Tau };
+
+const char* part_name(Part part) {
+  switch (part) {
+    case Part::Q: return "q";
+    case Part::Qd: return "qd";
+    case Part::Tau: return "tau";
+  }
+  return "?";
+}
+
+// The layout of an array entry, for error messages.
+const char* entry_layout(JointType type, Part part) {
+  if (type == JointType::Free) return part == Part::Q ? " [x,y,z,qw,qx,qy,qz]" : part == Part::Qd ? " [vx,vy,vz,wx,wy,wz] (body frame)" : " [fx,fy,fz,tx,ty,tz]";
+  if (type == JointType::Spherical) return part == Part::Q ? " [qw,qx,qy,qz]" : part == Part::Qd ? " [wx,wy,wz] (body frame)" : " [tx,ty,tz]";
+  return "";
+}
+
+// The body whose inbound joint is `name`; throws naming the key otherwise.
+int joint_body(const Model& model, const std::string& name, const std::string& where) {
+  const auto it = model.joint_by_name.find(name);
+  if (it != model.joint_by_name.end()) return it->second;
+  for (std::size_t f = 0; f < model.frame_joint_name.size(); ++f)
+    if (model.frame_joint_name[f] == name)
+      throw StateError(where + ": joint \"" + name + "\" is fixed and has no coordinates");
+  throw StateError(where + ": unknown joint \"" + name + "\" (run `lockstep info` to list the joints)");
+}
+
+// Reads one entry into out[offset, offset + size).
+void read_entry(const json::Value& value, const std::string& where, JointType type, Part part, int size,
+                Eigen::VectorXd& out, int offset) {
+  if (size == 1) {
+    if (!value.is_number())
+      throw StateError(where + ": expected a number, got " + json::type_name(value.type));
+    if (!std::isfinite(value.number)) throw StateError(where + ": value is not finite");
+    out[offset] = value.number;
+    return;
+  }
+  const std::string expected = "expected an array of " + std::to_string(size) + " numbers" + entry_layout(type, part);
+  if (!value.is_array()) throw StateError(where + ": " + expected + ", got " + json::type_name(value.type));
+  if (static_cast<int>(value.array.size()) != size)
+    throw StateError(where + ": " + expected + ", got " + std::to_string(value.array.size()) + " entries");
+  for (int k = 0; k < size; ++k) {
+    const json::Value& item = value.array[k];
+    const std::string item_where = where + "[" + std::to_string(k) + "]";
+    if (!item.is_number()) throw StateError(item_where + ": expected a number, got " + json::type_name(item.type));
+    if (!std::isfinite(item.number)) throw StateError(item_where + ": value is not finite");
+    out[offset + k] = item.number;
+  }
+  // Quaternions (w, x, y, z): Free q[3..7), Spherical q[0..4).
+  if (part == Part::Q && (type == JointType::Free || type == JointType::Spherical)) {
+    const int first = offset + (type == JointType::Free ? 3 : 0);
+    const double norm = out.segment<4>(first).norm();
+    if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance))
+      throw StateError(where + ": the quaternion (qw,qx,qy,qz) has norm " + json::number(norm) +
+                       "; it must be 1 within " + json::number(kQuaternionNormTolerance));
+    out.segment<4>(first) /= norm;
+  }
+}
+
+}  // namespace
+
+JointState read_state(const Model& model, const json::Value& root, const std::string& source) {
+  JointState state;
+  state.q = model.neutral_configuration();
+  state.v = Eigen::VectorXd::Zero(model.nv);
+  state.tau = Eigen::VectorXd::Zero(model.nv);
+  if (!root.is_object())
+    throw StateError(source + ": expected an object with \"q\", \"qd\" and \"tau\", got " + json::type_name(root.type));
+  for (const auto& [key, entries] : root.object) {
+    Part part;
+    if (key == "q") part = Part::Q;
+    else if (key == "qd") part = Part::Qd;
+    else if (key == "tau") part = Part::Tau;
+    else throw StateError(source + ": unknown key \"" + key + "\" (expected \"q\", \"qd\" or \"tau\")");
+    if (!entries.is_object())
+      throw StateError(source + ": " + key + ": expected an object keyed by joint name, got " +
+                       json::type_name(entries.type));
+    for (const auto& [name, value] : entries.object) {
+      const std::string where = source + ": " + part_name(part) + "." + name;
+      const int body = joint_body(model, name, where);
+      const JointType type = model.body_joint[body];
+      if (part == Part::Q) read_entry(value, where, type, part, joint_nq(type), state.q, model.body_q_offset[body]);
+      else if (part == Part::Qd) read_entry(value, where, type, part, joint_nv(type), state.v, model.body_dof_offset[body]);
+      else read_entry(value, where, type, part, joint_nv(type), state.tau, model.body_dof_offset[body]);
+    }
+  }
+  return state;
+}
+
+}  // namespace lockstep
