@@ -201,10 +201,8 @@ TEST(ModelBuilder, SphericalKeepsJointFrame) {
   const ArticulationSpec s = sample();
   const Model m = build(s);
   EXPECT_EQ(m.body_joint[2], JointType::Spherical);
-  const Eigen::Isometry3d b_body = m.body_placement[1];
   EXPECT_TRUE(m.body_placement[2].isApprox(m.frame_placement[m.frame_index("robot_b")] * s.links[4].joint.origin));
   EXPECT_TRUE(m.frame_placement[m.frame_index("robot_c")].isApprox(Eigen::Isometry3d::Identity()));
-  (void)b_body;
 }
 
 TEST(ModelBuilder, FixedChildLumpedByParallelAxis) {

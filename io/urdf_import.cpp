@@ -1,0 +1,427 @@
+#include "io/urdf_import.hpp"
+
+#include <console_bridge/console.h>
+#include <tinyxml2.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <unordered_map>
+
+namespace lockstep {
+
+namespace {
+
+namespace fs = std::filesystem;
+using tinyxml2::XMLElement;
+
+// "file:LINE: <joint name='j'>" for messages.
+std::string at(const std::string& src, const XMLElement* e) {
+  return src + ":" + std::to_string(e->GetLineNum());
+}
+
+std::string describe(const XMLElement* owner, const XMLElement* e) {
+  const char* name = owner->Attribute("name");
+  std::string s = std::string(owner->Name()) + " '" + (name ? name : "") + "'";
+  if (e != owner) s += " <" + std::string(e->Name()) + ">";
+  return s;
+}
+
+// Parses the whole of `text` as `count` whitespace-separated finite numbers.
+// Returns the reason when it cannot.
+std::string parse_numbers(const char* text, int count, double* out) {
+  const char* p = text;
+  const char* end = text + std::char_traits<char>::length(text);
+  for (int k = 0; k < count; ++k) {
+    while (p < end && std::isspace(static_cast<unsigned char>(*p))) ++p;
+    if (p == end) return "expected " + std::to_string(count) + " numbers";
+    if (*p == '+') ++p;
+    const auto [next, ec] = std::from_chars(p, end, out[k]);
+    if (ec == std::errc::result_out_of_range) return "number out of range";
+    if (ec != std::errc() || (next < end && !std::isspace(static_cast<unsigned char>(*next)))) return "not a number";
+    if (!std::isfinite(out[k])) return "not a finite number";
+    p = next;
+  }
+  while (p < end && std::isspace(static_cast<unsigned char>(*p))) ++p;
+  if (p != end) return "expected " + std::to_string(count) + " numbers";
+  return "";
+}
+
+// Reads attribute `attr` of `e` (count numbers) when present; throws on bad text.
+bool read_attr(const std::string& src, const XMLElement* owner, const XMLElement* e, const char* attr, int count,
+               double* out) {
+  const char* text = e->Attribute(attr);
+  if (!text) return false;
+  const std::string why = parse_numbers(text, count, out);
+  if (!why.empty())
+    throw ModelError(at(src, e) + ": " + describe(owner, e) + " attribute " + attr + "=\"" + text + "\": " + why);
+  return true;
+}
+
+// Validates the numeric attributes of child `tag` of `e` (when present).
+void check_child(const std::string& src, const XMLElement* owner, const XMLElement* e, const char* tag,
+                 std::initializer_list<std::pair<const char*, int>> attrs) {
+  for (const XMLElement* c = e->FirstChildElement(tag); c; c = c->NextSiblingElement(tag)) {
+    double v[3];
+    for (const auto& [attr, count] : attrs) read_attr(src, owner, c, attr, count, v);
+  }
+}
+
+Eigen::Isometry3d origin_of(const std::string& src, const XMLElement* owner, const XMLElement* e) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  const XMLElement* o = e->FirstChildElement("origin");
+  if (!o) return t;
+  double xyz[3] = {0, 0, 0}, rpy[3] = {0, 0, 0};
+  read_attr(src, owner, o, "xyz", 3, xyz);
+  read_attr(src, owner, o, "rpy", 3, rpy);
+  t.translation() = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
+  t.linear() = (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  return t;
+}
+
+Eigen::Isometry3d to_eigen(const urdf::Pose& pose) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  t.linear() = Eigen::Quaterniond(pose.rotation.w, pose.rotation.x, pose.rotation.y, pose.rotation.z).toRotationMatrix();
+  return t;
+}
+
+// Resolves a mesh reference; empty when no such file exists.
+std::string resolve_mesh(const std::string& ref, const fs::path& base) {
+  std::error_code ec;
+  const std::string pkg_scheme = "package://", file_scheme = "file://";
+  if (ref.compare(0, pkg_scheme.size(), pkg_scheme) == 0) {
+    const std::string rest = ref.substr(pkg_scheme.size());
+    const std::size_t slash = rest.find('/');
+    const std::string pkg = rest.substr(0, slash);
+    const std::string inner = slash == std::string::npos ? "" : rest.substr(slash + 1);
+    for (fs::path d = fs::absolute(base, ec);; d = d.parent_path()) {
+      for (const fs::path& candidate : {d / pkg / inner, d.filename() == pkg ? d / inner : fs::path()})
+        if (!candidate.empty() && fs::is_regular_file(candidate, ec)) return candidate.lexically_normal().string();
+      if (d == d.parent_path()) break;
+    }
+    return "";
+  }
+  fs::path p = ref.compare(0, file_scheme.size(), file_scheme) == 0 ? fs::path(ref.substr(file_scheme.size())) : fs::path(ref);
+  if (p.is_relative()) p = base / p;
+  return fs::is_regular_file(p, ec) ? p.lexically_normal().string() : "";
+}
+
+// Collision elements of one link, straight from the XML (urdfdom 3 knows no capsules).
+std::vector<Shape> read_collisions(const std::string& src, const XMLElement* link, const std::string& link_name,
+                                   const fs::path& base, std::vector<std::string>& warnings) {
+  std::vector<Shape> shapes;
+  for (const XMLElement* c = link->FirstChildElement("collision"); c; c = c->NextSiblingElement("collision")) {
+    const XMLElement* geometry = c->FirstChildElement("geometry");
+    const XMLElement* g = geometry ? geometry->FirstChildElement() : nullptr;
+    if (!g) throw ModelError(at(src, c) + ": " + describe(link, c) + " has no geometry");
+    Shape shape;
+    shape.pose = origin_of(src, link, c);
+    const std::string type = g->Name();
+    double v[3] = {0, 0, 0};
+    auto need = [&](const char* attr, int count) {
+      if (!read_attr(src, link, g, attr, count, v))
+        throw ModelError(at(src, g) + ": " + describe(link, g) + " is missing attribute " + attr);
+    };
+    if (type == "box") {
+      need("size", 3);
+      shape.type = ShapeType::Box;
+      shape.size = 0.5 * Eigen::Vector3d(v[0], v[1], v[2]);
+    } else if (type == "sphere") {
+      need("radius", 1);
+      shape.type = ShapeType::Sphere;
+      shape.size = Eigen::Vector3d(v[0], 0.0, 0.0);
+    } else if (type == "cylinder" || type == "capsule") {
+      need("radius", 1);
+      const double radius = v[0];
+      need("length", 1);
+      shape.type = type == "cylinder" ? ShapeType::Cylinder : ShapeType::Capsule;
+      shape.size = Eigen::Vector3d(radius, 0.5 * v[0], 0.0);
+    } else if (type == "mesh") {
+      const char* file = g->Attribute("filename");
+      if (!file) throw ModelError(at(src, g) + ": " + describe(link, g) + " is missing attribute filename");
+      shape.type = ShapeType::Mesh;
+      if (read_attr(src, link, g, "scale", 3, v)) shape.mesh_scale = Eigen::Vector3d(v[0], v[1], v[2]);
+      shape.mesh_path = resolve_mesh(file, base);
+      if (shape.mesh_path.empty()) {
+        warnings.push_back(at(src, g) + ": link '" + link_name + "': mesh file '" + file +
+                           "' not found; collision geometry skipped");
+        continue;
+      }
+    } else {
+      warnings.push_back(at(src, g) + ": link '" + link_name + "': unsupported collision geometry <" + type +
+                         ">; skipped");
+      continue;
+    }
+    if ((shape.size.array() < 0.0).any())
+      throw ModelError(at(src, g) + ": " + describe(link, g) + " has a negative size");
+    shapes.push_back(shape);
+  }
+  return shapes;
+}
+
+// Collects urdfdom's console messages instead of letting them reach stderr.
+class CaptureOutput : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR) errors += (errors.empty() ? "" : "; ") + text;
+  }
+  std::string errors;
+};
+
+urdf::ModelInterfaceSharedPtr parse_with_urdfdom(const std::string& xml, std::string& errors) {
+  static std::mutex mutex;  // console_bridge's handler is process-wide
+  std::lock_guard<std::mutex> lock(mutex);
+  CaptureOutput capture;
+  console_bridge::useOutputHandler(&capture);
+  urdf::ModelInterfaceSharedPtr model;
+  try {
+    model = urdf::parseURDF(xml);
+  } catch (const std::exception& e) {
+    capture.errors += (capture.errors.empty() ? "" : "; ") + std::string(e.what());
+  }
+  console_bridge::restorePreviousOutputHandler();
+  errors = capture.errors;
+  return model;
+}
+
+struct RawJoint {
+  const XMLElement* element;
+  std::string name, type, parent, child;
+};
+
+}  // namespace
+
+ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std::string& src,
+                                               const UrdfOptions& options, std::vector<std::string>* warnings_out) {
+  std::vector<std::string> warnings;
+  tinyxml2::XMLDocument doc;
+  if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS)
+    throw ModelError(src + ":" + std::to_string(doc.ErrorLineNum()) + ": not valid XML: " + doc.ErrorStr());
+  XMLElement* robot = doc.RootElement();
+  if (!robot || std::string(robot->Name()) != "robot")
+    throw ModelError(src + ": the root element is not <robot>");
+  const char* robot_name = robot->Attribute("name");
+  if (!robot_name || !*robot_name) throw ModelError(at(src, robot) + ": <robot> has no name");
+
+  // Links and joints as written, with every number we read checked as text.
+  std::map<std::string, XMLElement*> links;
+  std::vector<std::string> link_order;
+  for (XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) {
+    const char* name = l->Attribute("name");
+    if (!name || !*name) throw ModelError(at(src, l) + ": <link> has no name");
+    if (!links.emplace(name, l).second) throw ModelError(at(src, l) + ": duplicate link '" + name + "'");
+    link_order.push_back(name);
+    for (const XMLElement* in = l->FirstChildElement("inertial"); in; in = in->NextSiblingElement("inertial")) {
+      check_child(src, l, in, "origin", {{"xyz", 3}, {"rpy", 3}});
+      check_child(src, l, in, "mass", {{"value", 1}});
+      check_child(src, l, in, "inertia", {{"ixx", 1}, {"ixy", 1}, {"ixz", 1}, {"iyy", 1}, {"iyz", 1}, {"izz", 1}});
+    }
+  }
+  if (links.empty()) throw ModelError(src + ": the robot has no links");
+
+  std::vector<RawJoint> joints;
+  std::set<std::string> joint_names;
+  std::map<std::string, const RawJoint*> parent_joint;
+  for (XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
+    RawJoint raw{j, "", "", "", ""};
+    const char* name = j->Attribute("name");
+    if (!name || !*name) throw ModelError(at(src, j) + ": <joint> has no name");
+    raw.name = name;
+    if (!joint_names.insert(raw.name).second) throw ModelError(at(src, j) + ": duplicate joint '" + raw.name + "'");
+    const char* type = j->Attribute("type");
+    raw.type = type ? type : "";
+    if (raw.type == "floating")
+      throw ModelError(at(src, j) + ": joint '" + raw.name +
+                       "': floating joint inside the tree is not supported (use UrdfOptions::floating_base for the root)");
+    if (raw.type == "planar") throw ModelError(at(src, j) + ": joint '" + raw.name + "': planar joints are not supported");
+    if (raw.type != "revolute" && raw.type != "continuous" && raw.type != "prismatic" && raw.type != "fixed")
+      throw ModelError(at(src, j) + ": joint '" + raw.name + "': unknown joint type '" + raw.type + "'");
+    for (const char* tag : {"parent", "child"}) {
+      const XMLElement* e = j->FirstChildElement(tag);
+      const char* link = e ? e->Attribute("link") : nullptr;
+      if (!link) throw ModelError(at(src, j) + ": joint '" + raw.name + "' has no <" + tag + " link=...>");
+      if (!links.count(link))
+        throw ModelError(at(src, e) + ": joint '" + raw.name + "': " + tag + " link '" + link + "' does not exist");
+      (std::string(tag) == "parent" ? raw.parent : raw.child) = link;
+    }
+    check_child(src, j, j, "origin", {{"xyz", 3}, {"rpy", 3}});
+    check_child(src, j, j, "axis", {{"xyz", 3}});
+    check_child(src, j, j, "limit", {{"lower", 1}, {"upper", 1}, {"effort", 1}, {"velocity", 1}});
+    check_child(src, j, j, "dynamics", {{"damping", 1}, {"friction", 1}});
+    check_child(src, j, j, "mimic", {{"multiplier", 1}, {"offset", 1}});
+    joints.push_back(raw);
+  }
+
+  // The joint graph must be one tree: urdfdom accepts a cycle beside a tree.
+  for (const RawJoint& j : joints) {
+    const auto [it, fresh] = parent_joint.emplace(j.child, &j);
+    if (!fresh)
+      throw ModelError(at(src, j.element) + ": link '" + j.child + "' has two parents (joints '" + it->second->name +
+                       "' and '" + j.name + "')");
+  }
+  std::map<std::string, std::vector<const RawJoint*>> children;
+  for (const RawJoint& j : joints) children[j.parent].push_back(&j);
+  std::vector<std::string> roots;
+  for (const std::string& l : link_order)
+    if (!parent_joint.count(l)) roots.push_back(l);
+  std::set<std::string> reached;
+  std::vector<std::string> stack = roots;
+  while (!stack.empty()) {
+    const std::string l = stack.back();
+    stack.pop_back();
+    reached.insert(l);
+    for (const RawJoint* j : children[l]) stack.push_back(j->child);
+  }
+  for (const std::string& l : link_order) {
+    if (reached.count(l)) continue;
+    std::string cycle, cur = l;  // walk up until a link repeats: that is the cycle
+    std::set<std::string> seen;
+    while (seen.insert(cur).second) cur = parent_joint.at(cur)->parent;
+    const std::string start = cur;
+    do {
+      cycle += "'" + cur + "' <- ";
+      cur = parent_joint.at(cur)->parent;
+    } while (cur != start);
+    throw ModelError(at(src, parent_joint.at(start)->element) + ": the joints form a cycle: " + cycle + "'" + start + "'");
+  }
+  if (roots.size() != 1) {
+    std::string names;
+    for (const std::string& r : roots) names += (names.empty() ? "'" : ", '") + r + "'";
+    throw ModelError(src + ": several root links (" + names + "); a URDF must be one tree");
+  }
+
+  // urdfdom reads the values; collisions and visuals are taken out first
+  // (urdfdom 3 rejects geometry it does not know, such as <capsule>).
+  const fs::path base = fs::path(src).parent_path();
+  std::map<std::string, std::vector<Shape>> shapes;
+  for (const std::string& name : link_order) {
+    XMLElement* l = links.at(name);
+    shapes[name] = read_collisions(src, l, options.name_prefix + name, base, warnings);
+    for (const char* tag : {"collision", "visual"})
+      while (XMLElement* e = l->FirstChildElement(tag)) l->DeleteChild(e);
+  }
+  tinyxml2::XMLPrinter printer;
+  doc.Print(&printer);
+  std::string urdfdom_errors;
+  const urdf::ModelInterfaceSharedPtr model = parse_with_urdfdom(printer.CStr(), urdfdom_errors);
+  if (!model) throw ModelError(src + ": invalid URDF: " + (urdfdom_errors.empty() ? "rejected by urdfdom" : urdfdom_errors));
+
+  ArticulationSpec spec;
+  spec.name = options.name_prefix + robot_name;
+  spec.source = src;
+  spec.floating_base = options.floating_base;
+  spec.root_pose = options.root_pose;
+  const std::string& prefix = options.name_prefix;
+
+  struct Visit {
+    std::string link;
+    const RawJoint* joint;
+  };
+  std::vector<Visit> todo{{roots.front(), nullptr}};
+  while (!todo.empty()) {
+    const Visit v = todo.back();
+    todo.pop_back();
+    const auto& kids = children[v.link];
+    for (auto k = kids.rbegin(); k != kids.rend(); ++k) todo.push_back({(*k)->child, *k});
+
+    LinkSpec link;
+    link.name = prefix + v.link;
+    link.shapes = shapes[v.link];
+    const urdf::LinkConstSharedPtr ul = model->getLink(v.link);
+    if (ul && ul->inertial) {
+      const urdf::Inertial& in = *ul->inertial;
+      link.inertial.mass = in.mass;
+      link.inertial.origin = to_eigen(in.origin);
+      link.inertial.inertia << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+    }
+    if (v.joint) {
+      const urdf::JointConstSharedPtr uj = model->getJoint(v.joint->name);
+      if (!uj) throw ModelError(at(src, v.joint->element) + ": joint '" + v.joint->name + "' was not read by urdfdom");
+      link.parent = prefix + v.joint->parent;
+      JointSpec& j = link.joint;
+      j.name = prefix + uj->name;
+      j.origin = to_eigen(uj->parent_to_joint_origin_transform);
+      j.axis = Eigen::Vector3d(uj->axis.x, uj->axis.y, uj->axis.z);
+      switch (uj->type) {
+        case urdf::Joint::REVOLUTE:
+        case urdf::Joint::CONTINUOUS: j.type = JointType::Revolute; break;
+        case urdf::Joint::PRISMATIC: j.type = JointType::Prismatic; break;
+        case urdf::Joint::FIXED: j.type = JointType::Fixed; break;
+        default:
+          throw ModelError(at(src, v.joint->element) + ": joint '" + uj->name + "': unsupported joint type");
+      }
+      std::string placeholders;
+      if (uj->limits && j.type != JointType::Fixed) {
+        const urdf::JointLimits& lim = *uj->limits;
+        if (uj->type != urdf::Joint::CONTINUOUS) {
+          j.limited = !(lim.lower == 0.0 && lim.upper == 0.0);
+          if (j.limited) {
+            j.lower = lim.lower;
+            j.upper = lim.upper;
+          } else {
+            placeholders += " lower == upper == 0";
+          }
+        }
+        if (lim.velocity == 0.0) placeholders += " velocity=0";
+        else j.velocity_limit = lim.velocity;
+        if (lim.effort == 0.0) placeholders += " effort=0";
+        else j.effort_limit = lim.effort;
+      }
+      if (!placeholders.empty())
+        warnings.push_back(at(src, v.joint->element) + ": joint '" + j.name + "': limit" + placeholders +
+                           " read as no limit");
+      if (uj->dynamics) {
+        j.damping = uj->dynamics->damping;
+        j.friction = uj->dynamics->friction;
+      }
+      if (uj->mimic && j.type == JointType::Fixed) {
+        warnings.push_back(at(src, v.joint->element) + ": joint '" + j.name + "': mimic tag on a fixed joint ignored");
+      } else if (uj->mimic) {
+        j.mimic.leader_joint = prefix + uj->mimic->joint_name;
+        j.mimic.multiplier = uj->mimic->multiplier;
+        j.mimic.offset = uj->mimic->offset;
+      }
+    }
+    spec.links.push_back(std::move(link));
+  }
+
+  if (warnings_out) warnings_out->insert(warnings_out->end(), warnings.begin(), warnings.end());
+  return spec;
+}
+
+ArticulationSpec urdf_articulation_from_file(const std::string& path, const UrdfOptions& options,
+                                             std::vector<std::string>* warnings) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ModelError(path + ": cannot open the URDF file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw ModelError(path + ": cannot read the URDF file");
+  return urdf_articulation_from_string(text.str(), path, options, warnings);
+}
+
+int add_urdf(ModelBuilder& builder, const std::string& path, const UrdfOptions& options) {
+  std::vector<std::string> warnings;
+  const ArticulationSpec spec = urdf_articulation_from_file(path, options, &warnings);
+  for (const std::string& w : warnings) builder.add_warning(w);
+  return builder.add_articulation(spec);
+}
+
+Model load_urdf(const std::string& path, const UrdfOptions& options, const BuildOptions& build,
+                std::vector<std::string>* warnings) {
+  ModelBuilder builder(build);
+  add_urdf(builder, path, options);
+  Model model = builder.finalize();
+  if (warnings) warnings->insert(warnings->end(), builder.warnings().begin(), builder.warnings().end());
+  return model;
+}
+
+}  // namespace lockstep
