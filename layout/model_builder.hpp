@@ -79,6 +79,11 @@ class ModelBuilder {
 
   // Validates the articulation and appends it to the forest; returns its index.
   // Throws ModelError naming the articulation (and source) and element.
+  // A floating root's Free joint is named by the root link's joint.name, or
+  // "<articulation name>_root" when that is empty. Warnings: massless links
+  // on fixed joints fused into a moving body (those fused into the world are
+  // dropped anyway), point masses, and principal moments violating the
+  // triangle inequality; values are kept as written.
   int add_articulation(const ArticulationSpec& spec);
 
   void set_gravity(const Eigen::Vector3d& gravity);
