@@ -1,0 +1,91 @@
+// Shared helpers of the kernel tests: the real robot models, random states.
+#pragma once
+
+#include "io/urdf_import.hpp"
+#include "layout/model.hpp"
+
+#include <Eigen/Geometry>
+
+#include <random>
+#include <string>
+#include <vector>
+
+#ifndef LOCKSTEP_SHARED_MODELS_DIR
+#define LOCKSTEP_SHARED_MODELS_DIR "../shared/models"
+#endif
+
+namespace lockstep::test {
+
+inline const std::vector<std::string>& shared_model_names() {
+  static const std::vector<std::string> names = {"ur5",          "panda",          "double_pendulum", "anymal_b",
+                                                 "a1",           "solo12",         "talos_reduced",   "simple_humanoid",
+                                                 "allegro_right_hand", "finger_edu"};
+  return names;
+}
+
+inline std::string shared_model_path(const std::string& name) {
+  return std::string(LOCKSTEP_SHARED_MODELS_DIR) + "/" + name + ".urdf";
+}
+
+inline Model load_shared_model(const std::string& name, bool floating_base) {
+  UrdfOptions options;
+  options.floating_base = floating_base;
+  return load_urdf(shared_model_path(name), options);
+}
+
+// A model case: name and base type, printable for parameterised tests.
+struct ModelCase {
+  std::string name;
+  bool floating_base;
+};
+inline std::vector<ModelCase> all_model_cases() {
+  std::vector<ModelCase> cases;
+  for (const std::string& name : shared_model_names()) {
+    cases.push_back({name, false});
+    cases.push_back({name, true});
+  }
+  return cases;
+}
+inline std::string case_name(const ModelCase& c) { return c.name + (c.floating_base ? "_floating" : "_fixed"); }
+
+// A random configuration: joint angles in [-1.5, 1.5] rad (inside the
+// limits where the joint has them), prismatic joints inside their limits,
+// random unit quaternions, the base within a metre of the origin.
+inline Eigen::VectorXd random_configuration(const Model& model, std::mt19937& rng) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Eigen::VectorXd q = model.neutral_configuration();
+  for (int b = 0; b < model.nbody; ++b) {
+    const int o = model.body_q_offset[b];
+    const int d = model.body_dof_offset[b];
+    switch (model.body_joint[b]) {
+      case JointType::Revolute:
+      case JointType::Prismatic: {
+        double lo = std::max(model.dof_lower[d], -1.5), hi = std::min(model.dof_upper[d], 1.5);
+        if (lo > hi) lo = hi = 0.5 * (model.dof_lower[d] + model.dof_upper[d]);
+        q[o] = lo + (hi - lo) * 0.5 * (unit(rng) + 1.0);
+        break;
+      }
+      case JointType::Free:
+        for (int k = 0; k < 3; ++k) q[o + k] = unit(rng);
+        [[fallthrough]];
+      case JointType::Spherical: {
+        const int r = model.body_joint[b] == JointType::Free ? o + 3 : o;
+        Eigen::Vector4d quat(unit(rng), unit(rng), unit(rng), unit(rng));
+        q.segment<4>(r) = quat.normalized();
+        break;
+      }
+      case JointType::Fixed:
+        break;
+    }
+  }
+  return q;
+}
+
+inline Eigen::VectorXd random_vector(int n, std::mt19937& rng, double scale = 1.0) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Eigen::VectorXd v(n);
+  for (int k = 0; k < n; ++k) v[k] = scale * unit(rng);
+  return v;
+}
+
+}  // namespace lockstep::test
