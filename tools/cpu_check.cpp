@@ -1,11 +1,11 @@
-// Compiled for baseline x86-64 (see cmake/LockstepFlags.cmake): nothing here
-// may use an instruction the check has not yet confirmed.
+// Compiled for baseline x86-64 (see cmake/LockstepFlags.cmake): nothing the
+// constructor runs may use an instruction the check has not yet confirmed,
+// so its path uses only libc and the plain-C functions below.
 #include "tools/cpu_check.hpp"
 
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <sstream>
 
 #ifndef LOCKSTEP_REQUIRED_ISA
 #define LOCKSTEP_REQUIRED_ISA ""
@@ -18,23 +18,45 @@ namespace lockstep {
 
 namespace {
 
-std::vector<std::string> split_csv(const char* text) {
-  std::vector<std::string> out;
+constexpr std::size_t kMaxFeatureName = 64;
+
+// Whether `name` is an entry of the comma-separated `list`.
+bool csv_contains(const char* list, const char* name) {
+  const std::size_t n = std::strlen(name);
+  for (const char* p = list; *p;) {
+    const char* end = std::strchr(p, ',');
+    const std::size_t len = end ? std::size_t(end - p) : std::strlen(p);
+    if (len == n && std::strncmp(p, name, n) == 0) return true;
+    if (!end) break;
+    p = end + 1;
+  }
+  return false;
+}
+
+// The non-empty items of `text` separated by `separator` (not for use
+// before the check has passed).
+std::vector<std::string> split(const char* text, char separator) {
+  std::vector<std::string> items;
   std::string item;
-  std::istringstream in(text);
-  while (std::getline(in, item, ','))
-    if (!item.empty()) out.push_back(item);
-  return out;
+  for (const char* p = text;; ++p) {
+    if (*p == separator || *p == '\0') {
+      if (!item.empty()) items.push_back(item);
+      item.clear();
+      if (*p == '\0') return items;
+    } else {
+      item += *p;
+    }
+  }
 }
 
 }  // namespace
 
-std::vector<std::string> cpu_required_features() { return split_csv(LOCKSTEP_REQUIRED_ISA); }
+const char* cpu_required_features_csv() { return LOCKSTEP_REQUIRED_ISA; }
 
-bool cpu_supports(const std::string& feature) {
+bool cpu_supports(const char* feature) {
   // __builtin_cpu_supports takes only string literals, hence the table.
 #define LOCKSTEP_FEATURE(macro_name, builtin_name) \
-  if (feature == macro_name) return __builtin_cpu_supports(builtin_name) != 0;
+  if (std::strcmp(feature, macro_name) == 0) return __builtin_cpu_supports(builtin_name) != 0;
   LOCKSTEP_FEATURE("SSSE3", "ssse3")
   LOCKSTEP_FEATURE("SSE4_1", "sse4.1")
   LOCKSTEP_FEATURE("SSE4_2", "sse4.2")
@@ -62,40 +84,65 @@ bool cpu_supports(const std::string& feature) {
   return false;
 }
 
-std::vector<std::string> cpu_missing_features(const std::vector<std::string>& required,
-                                              const std::function<bool(const std::string&)>& supports) {
-  std::vector<std::string> missing;
-  for (const std::string& feature : required)
-    if (!supports(feature)) missing.push_back(feature);
-  return missing;
+int cpu_find_missing(const char* required, CpuSupportsFn supports, const void* context, char* missing,
+                     std::size_t missing_size) {
+  int count = 0;
+  std::size_t used = 0;
+  if (missing_size > 0) missing[0] = '\0';
+  for (const char* p = required; *p;) {
+    const char* end = std::strchr(p, ',');
+    const std::size_t len = end ? std::size_t(end - p) : std::strlen(p);
+    if (len > 0) {
+      char name[kMaxFeatureName] = {};
+      std::memcpy(name, p, len < kMaxFeatureName ? len : kMaxFeatureName - 1);
+      if (!supports(name, context)) {
+        ++count;
+        const int written = std::snprintf(missing + used, missing_size - used, "%s%s", used ? " " : "", name);
+        if (written > 0) used = used + std::size_t(written) < missing_size ? used + std::size_t(written) : missing_size - 1;
+      }
+    }
+    if (!end) break;
+    p = end + 1;
+  }
+  return count;
 }
 
-std::string cpu_check_message(const std::vector<std::string>& missing) {
-  if (missing.empty()) return "";
-  std::string list;
-  for (const std::string& feature : missing) list += (list.empty() ? "" : " ") + feature;
-  return "lockstep: this CPU lacks instruction-set extensions the program was built for (" LOCKSTEP_ARCH_FLAGS
-         "): " + list + ". Rebuild on this machine, or configure with -DLOCKSTEP_PORTABLE=ON.\n";
+std::vector<std::string> cpu_required_features() { return split(cpu_required_features_csv(), ','); }
+
+std::vector<std::string> cpu_missing_features(const std::vector<std::string>& required,
+                                              const std::function<bool(const std::string&)>& supports) {
+  std::string csv;
+  for (const std::string& feature : required) csv += (csv.empty() ? "" : ",") + feature;
+  const auto trampoline = [](const char* feature, const void* context) {
+    return (*static_cast<const std::function<bool(const std::string&)>*>(context))(feature);
+  };
+  std::vector<char> text(csv.size() + 1);
+  cpu_find_missing(csv.c_str(), trampoline, &supports, text.data(), text.size());
+  return split(text.data(), ' ');
 }
 
 namespace {
 
+// LOCKSTEP_CPU_CHECK_PRETEND_MISSING (comma-separated names) counts those
+// extensions as missing: it lets tests see the failure path on a CPU that
+// has them all.
+bool supported_unless_pretended(const char* feature, const void* pretend) {
+  if (pretend && csv_contains(static_cast<const char*>(pretend), feature)) return false;
+  return cpu_supports(feature);
+}
+
 // Priority 101 runs before every default-priority initialiser of the program
-// (the linker orders .init_array by priority). LOCKSTEP_CPU_CHECK_PRETEND_MISSING
-// (a comma-separated list) treats extensions as missing: it lets tests see
-// the failure path on a CPU that has them all.
+// (the linker orders .init_array by priority).
 __attribute__((constructor(101))) void check_cpu_before_main() {
   __builtin_cpu_init();
-  std::vector<std::string> pretend;
-  if (const char* env = std::getenv("LOCKSTEP_CPU_CHECK_PRETEND_MISSING")) pretend = split_csv(env);
-  const auto supports = [&pretend](const std::string& feature) {
-    for (const std::string& p : pretend)
-      if (p == feature) return false;
-    return cpu_supports(feature);
-  };
-  const std::string message = cpu_check_message(cpu_missing_features(cpu_required_features(), supports));
-  if (message.empty()) return;
-  std::fputs(message.c_str(), stderr);
+  char missing[1024];
+  if (cpu_find_missing(cpu_required_features_csv(), supported_unless_pretended,
+                       std::getenv("LOCKSTEP_CPU_CHECK_PRETEND_MISSING"), missing, sizeof missing) == 0)
+    return;
+  std::fprintf(stderr,
+               "lockstep: this CPU lacks instruction-set extensions the program was built for (" LOCKSTEP_ARCH_FLAGS
+               "): %s. Rebuild on this machine, or configure with -DLOCKSTEP_PORTABLE=ON.\n",
+               missing);
   std::fflush(stderr);
   std::_Exit(kCpuCheckExitCode);
 }

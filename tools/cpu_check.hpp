@@ -4,8 +4,12 @@
 // executable (target lockstep_cpu_check); a constructor that runs before main
 // and before other static initialisers prints the missing extensions and exits
 // with kCpuCheckExitCode instead of letting the program die of SIGILL.
+//
+// Feature names are the compiler's macro names without underscores ("AVX2",
+// "AVX512F", ...).
 #pragma once
 
+#include <cstddef>
 #include <functional>
 #include <string>
 #include <vector>
@@ -14,19 +18,24 @@ namespace lockstep {
 
 inline constexpr int kCpuCheckExitCode = 3;
 
-// The extensions the build requires, as the compiler's macro names without
-// underscores ("AVX2", "AVX512F", ...), in the order cmake listed them.
+// The required extensions, comma-separated, in the order cmake listed them.
+const char* cpu_required_features_csv();
+
+// Whether this CPU supports `feature`; unknown names count as unsupported.
+bool cpu_supports(const char* feature);
+
+// The check itself, in plain C so that the constructor runs no inline C++
+// library code, of which the linker may keep a copy compiled for the full
+// instruction set. Writes the names in the comma-separated `required` that
+// `supports` rejects into `missing` (space-separated, NUL-terminated,
+// truncated to `missing_size`) and returns how many there are.
+using CpuSupportsFn = bool (*)(const char* feature, const void* context);
+int cpu_find_missing(const char* required, CpuSupportsFn supports, const void* context, char* missing,
+                     std::size_t missing_size);
+
+// The same for tests and tools (not for use before main).
 std::vector<std::string> cpu_required_features();
-
-// Whether this CPU supports `feature` (a name as above). Unknown names count
-// as unsupported.
-bool cpu_supports(const std::string& feature);
-
-// The entries of `required` that `supports` rejects, in order.
 std::vector<std::string> cpu_missing_features(const std::vector<std::string>& required,
                                               const std::function<bool(const std::string&)>& supports);
-
-// The message printed when `missing` is not empty ("" otherwise).
-std::string cpu_check_message(const std::vector<std::string>& missing);
 
 }  // namespace lockstep
