@@ -1,0 +1,364 @@
+// The remaining dynamics utilities against finite differences, against each
+// other and against physics: Jacobians, J^T F, incoming joint forces, the
+// configuration manifold, armature, per-copy inertia overrides, a Spherical
+// joint against three stacked revolutes, and momentum conservation.
+// Tolerances as in dynamics_identities_test.cpp.
+#include "batch/batch_dynamics.hpp"
+#include "batch/copy_dynamics.hpp"
+#include "layout/model_builder.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+namespace lockstep {
+namespace {
+
+constexpr double kStep = 1e-5;
+constexpr double kDifferenceTolerance = 1e-6;
+
+// One-copy manifold operations through the batch kernels (scalar lane).
+struct Manifold {
+  explicit Manifold(const Model& m) : model(m), dyn(m) {}
+  Eigen::VectorXd integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const {
+    BatchArray<double> qa = dyn.make_array(1, model.nq), va = dyn.make_array(1, model.nv), out = dyn.make_array(1, model.nq);
+    qa.set(0, q);
+    va.set(0, v);
+    dyn.integrate(qa, va, dt, out);
+    return out.get(0);
+  }
+  Eigen::VectorXd difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1) const {
+    BatchArray<double> a = dyn.make_array(1, model.nq), b = dyn.make_array(1, model.nq), out = dyn.make_array(1, model.nv);
+    a.set(0, q0);
+    b.set(0, q1);
+    dyn.difference(a, b, out);
+    return out.get(0);
+  }
+  const Model& model;
+  BatchDynamics<double> dyn;
+};
+
+class Utilities : public ::testing::TestWithParam<test::ModelCase> {
+ protected:
+  void SetUp() override {
+    model_ = test::load_shared_model(GetParam().name, GetParam().floating_base);
+    dyn_ = std::make_unique<CopyDynamics>(model_, Precision::Double);
+    manifold_ = std::make_unique<Manifold>(model_);
+  }
+  Model model_;
+  std::unique_ptr<CopyDynamics> dyn_;
+  std::unique_ptr<Manifold> manifold_;
+  std::mt19937 rng_{5};
+};
+
+TEST_P(Utilities, IntegrateAndDifferenceAreInverse) {
+  const Eigen::VectorXd q0 = test::random_configuration(model_, rng_);
+  const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0);
+  const Eigen::VectorXd q1 = manifold_->integrate(q0, v, 0.5);
+  EXPECT_LE((manifold_->difference(q0, q1) - 0.5 * v).norm(), 1e-12);
+  const Eigen::VectorXd q2 = test::random_configuration(model_, rng_);
+  const Eigen::VectorXd back = manifold_->integrate(q0, manifold_->difference(q0, q2), 1.0);
+  // Compare poses rather than quaternions (q and -q are the same rotation).
+  const auto a = dyn_->frame_poses(back), b = dyn_->frame_poses(q2);
+  for (std::size_t f = 0; f < a.size(); ++f) EXPECT_LE((a[f].matrix() - b[f].matrix()).norm(), 1e-12) << model_.frame_name[f];
+}
+
+// J v equals the time derivative of the point's position and orientation.
+TEST_P(Utilities, JacobiansMatchFiniteDifferencesOfKinematics) {
+  const Eigen::VectorXd q = test::random_configuration(model_, rng_);
+  const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0);
+  BatchDynamics<double> batch(model_);
+  BatchState<double> s = batch.make_state(1);
+  s.q.set(0, q);
+  BatchArray<double> J = batch.make_array(1, 6 * model_.nbody * model_.nv);
+  batch.com_jacobian(s, J);
+  const Eigen::MatrixXd Jcom = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(J.get(0).data(), 6 * model_.nbody, model_.nv);
+  const auto plus = dyn_->body_poses(manifold_->integrate(q, v, kStep));
+  const auto minus = dyn_->body_poses(manifold_->integrate(q, v, -kStep));
+  for (int b = 0; b < model_.nbody; ++b) {
+    const Eigen::Vector3d com_plus = plus[b] * model_.body_com[b], com_minus = minus[b] * model_.body_com[b];
+    const Eigen::Vector3d v_fd = (com_plus - com_minus) / (2 * kStep);
+    const Eigen::Matrix3d dR = (plus[b].linear() - minus[b].linear()) / (2 * kStep);
+    const Eigen::Matrix3d W = dR * plus[b].linear().transpose();  // [w]x to first order
+    const Eigen::Vector3d w_fd(W(2, 1) - W(1, 2), W(0, 2) - W(2, 0), W(1, 0) - W(0, 1));
+    const Eigen::VectorXd Jv = Jcom.middleRows<6>(6 * b) * v;
+    EXPECT_LE((Jv.head<3>() - v_fd).norm(), kDifferenceTolerance * (1.0 + v_fd.norm())) << "body " << b;
+    EXPECT_LE((Jv.tail<3>() - 0.5 * w_fd).norm(), kDifferenceTolerance * (1.0 + w_fd.norm())) << "body " << b;
+  }
+  // A point on the last frame.
+  const int frame = static_cast<int>(model_.frame_name.size()) - 1;
+  const Eigen::Vector3d offset(0.05, -0.02, 0.1);
+  BatchArray<double> Jp = batch.make_array(1, 6 * model_.nv);
+  batch.point_jacobian(s, frame, offset, Jp);
+  const Eigen::MatrixXd Jpoint = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(Jp.get(0).data(), 6, model_.nv);
+  const Eigen::Vector3d x_plus = dyn_->frame_poses(manifold_->integrate(q, v, kStep))[frame] * offset;
+  const Eigen::Vector3d x_minus = dyn_->frame_poses(manifold_->integrate(q, v, -kStep))[frame] * offset;
+  const Eigen::Vector3d v_fd = (x_plus - x_minus) / (2 * kStep);
+  EXPECT_LE(((Jpoint * v).head<3>() - v_fd).norm(), kDifferenceTolerance * (1.0 + v_fd.norm()));
+}
+
+// The generalized force of link wrenches is J_com^T F, and RNEA subtracts it.
+TEST_P(Utilities, ExternalForceIsJacobianTransposeTimesWrench) {
+  const Eigen::VectorXd q = test::random_configuration(model_, rng_);
+  const Eigen::MatrixXd wrench = Eigen::MatrixXd::Random(model_.nbody, 6);
+  BatchDynamics<double> batch(model_);
+  BatchState<double> s = batch.make_state(1);
+  s.q.set(0, q);
+  BatchArray<double> J = batch.make_array(1, 6 * model_.nbody * model_.nv);
+  batch.com_jacobian(s, J);
+  const Eigen::MatrixXd Jcom = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(J.get(0).data(), 6 * model_.nbody, model_.nv);
+  Eigen::VectorXd F(6 * model_.nbody);
+  for (int b = 0; b < model_.nbody; ++b) F.segment<6>(6 * b) = wrench.row(b).transpose();
+  const Eigen::VectorXd expected = Jcom.transpose() * F;
+  const Eigen::VectorXd ext = dyn_->external_force(q, wrench);
+  EXPECT_LE((ext - expected).norm(), 1e-12 * (1.0 + expected.norm()));
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model_.nv);
+  const Eigen::VectorXd with = dyn_->inverse_dynamics(q, zero, zero, &wrench);
+  EXPECT_LE((with - (dyn_->gravity_force(q) - ext)).norm(), 1e-12 * (1.0 + with.norm()));
+}
+
+// The force a joint transmits, projected on its motion axes, is the joint
+// force; a free root transmits nothing.
+TEST_P(Utilities, IncomingJointForcesProjectToJointForces) {
+  const Eigen::VectorXd q = test::random_configuration(model_, rng_);
+  const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0);
+  const Eigen::VectorXd tau = test::random_vector(model_.nv, rng_, 5.0);
+  BatchDynamics<double> batch(model_);
+  BatchState<double> s = batch.make_state(1);
+  s.q.set(0, q);
+  s.v.set(0, v);
+  s.tau.set(0, tau);
+  BatchArray<double> out = batch.make_array(1, 6 * model_.nbody);
+  batch.incoming_joint_forces(s, out);
+  const Eigen::VectorXd f = out.get(0);
+  const auto poses = dyn_->body_poses(q);
+  for (int b = 0; b < model_.nbody; ++b) {
+    const int d = model_.body_dof_offset[b];
+    const Eigen::Vector3d z = poses[b].linear().col(2);
+    const Eigen::Vector3d force = f.segment<3>(6 * b), torque = f.segment<3>(6 * b + 3);
+    switch (model_.body_joint[b]) {
+      case JointType::Revolute: EXPECT_NEAR(z.dot(torque), tau[d], 1e-9 * (1.0 + force.norm() + torque.norm())); break;
+      case JointType::Prismatic: EXPECT_NEAR(z.dot(force), tau[d], 1e-9 * (1.0 + force.norm() + torque.norm())); break;
+      case JointType::Free:  // the body-frame projections are the (zero) free-joint forces plus tau
+        EXPECT_LE((poses[b].linear().transpose() * force - tau.segment<3>(d)).norm(), 1e-9 * (1.0 + force.norm()));
+        break;
+      default: break;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedModels, Utilities, ::testing::ValuesIn(test::all_model_cases()),
+                         [](const auto& info) { return test::case_name(info.param); });
+
+// A chain hanging still (tau = gravity compensation) loads its first joint
+// with the weight of everything below it.
+TEST(IncomingJointForce, RootJointCarriesTheWeight) {
+  const Model model = test::load_shared_model("ur5", false);
+  CopyDynamics dyn(model);
+  const Eigen::VectorXd q = model.neutral_configuration();
+  BatchDynamics<double> batch(model);
+  BatchState<double> s = batch.make_state(1);
+  s.tau.set(0, dyn.gravity_force(q));
+  BatchArray<double> out = batch.make_array(1, 6 * model.nbody);
+  batch.incoming_joint_forces(s, out);
+  const Eigen::Vector3d expected = -model.total_mass() * model.gravity;
+  EXPECT_LE((out.get(0).head<3>() - expected).norm(), 1e-9 * expected.norm());
+}
+
+// Builder models for the spherical and armature tests: a base fixed to the
+// world, then a "ball" on either one Spherical joint or three revolutes
+// (x, then y, then z) through two massless links, then a "tip" on a revolute.
+LinkSpec link(const std::string& name, const std::string& parent, JointType type, const Eigen::Vector3d& axis,
+              double mass, const Eigen::Vector3d& origin = Eigen::Vector3d::Zero()) {
+  LinkSpec l;
+  l.name = name;
+  l.parent = parent;
+  l.joint.name = parent.empty() ? "" : name + "_joint";
+  l.joint.type = type;
+  l.joint.axis = axis;
+  l.joint.origin.translation() = origin;
+  l.inertial.mass = mass;
+  l.inertial.origin.translation() = Eigen::Vector3d(0.05, 0.1, -0.2);
+  l.inertial.inertia = mass * Eigen::Vector3d(0.03, 0.04, 0.05).asDiagonal();
+  l.inertial.inertia(0, 1) = l.inertial.inertia(1, 0) = 0.002 * mass;
+  return l;
+}
+
+Model ball_model(bool spherical, double armature = 0.0) {
+  ArticulationSpec a;
+  a.name = spherical ? "spherical" : "revolutes";
+  a.links.push_back(link("base", "", JointType::Fixed, Eigen::Vector3d::UnitZ(), 0.0));
+  std::string parent = "base";
+  if (!spherical) {
+    a.links.push_back(link("gimbal_x", "base", JointType::Revolute, Eigen::Vector3d::UnitX(), 0.0, Eigen::Vector3d(0, 0, 1)));
+    a.links.push_back(link("gimbal_y", "gimbal_x", JointType::Revolute, Eigen::Vector3d::UnitY(), 0.0));
+    a.links.push_back(link("ball", "gimbal_y", JointType::Revolute, Eigen::Vector3d::UnitZ(), 2.0));
+  } else {
+    a.links.push_back(link("ball", "base", JointType::Spherical, Eigen::Vector3d::UnitZ(), 2.0, Eigen::Vector3d(0, 0, 1)));
+  }
+  a.links.push_back(link("tip", "ball", JointType::Revolute, Eigen::Vector3d(0.3, 1, 0.2), 1.0, Eigen::Vector3d(0.2, 0, -0.4)));
+  for (LinkSpec& l : a.links) l.joint.armature = armature;
+  ModelBuilder builder;
+  builder.add_articulation(a);
+  return builder.finalize();
+}
+
+TEST(Spherical, EqualsThreeStackedRevolutes) {
+  const Model sph = ball_model(true), rev = ball_model(false);
+  ASSERT_EQ(sph.nv, 4);
+  ASSERT_EQ(rev.nv, 4);
+  CopyDynamics ds(sph), dr(rev);
+  const double a = 0.4, b = -0.7, c = 1.1, tip = 0.3;  // away from the gimbal singularity b = +-pi/2
+  const Eigen::Vector4d rates(0.5, -1.2, 0.8, 2.0);
+  const Eigen::Quaterniond rot(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(b, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(c, Eigen::Vector3d::UnitZ()));
+  Eigen::VectorXd qs(5), qr(4);
+  qs << rot.w(), rot.x(), rot.y(), rot.z(), tip;
+  qr << a, b, c, tip;
+  // body-frame angular velocity of the ball from the gimbal rates: w = E rates
+  const Eigen::Matrix3d Ry = Eigen::AngleAxisd(b, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  const Eigen::Matrix3d Rz = Eigen::AngleAxisd(c, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  T.block<3, 1>(0, 0) = Rz.transpose() * Ry.transpose() * Eigen::Vector3d::UnitX();
+  T.block<3, 1>(0, 1) = Rz.transpose() * Eigen::Vector3d::UnitY();
+  T.block<3, 1>(0, 2) = Eigen::Vector3d::UnitZ();
+  const Eigen::VectorXd vs = T * rates;
+  for (const char* name : {"ball", "tip"}) {
+    const Eigen::Isometry3d Xs = ds.frame_poses(qs)[sph.frame_index(name)], Xr = dr.frame_poses(qr)[rev.frame_index(name)];
+    EXPECT_LE((Xs.matrix() - Xr.matrix()).norm(), 1e-12) << name;
+  }
+  EXPECT_NEAR(ds.kinetic_energy(qs, vs), dr.kinetic_energy(qr, rates), 1e-12);
+  EXPECT_LE((T.transpose() * ds.mass_matrix(qs) * T - dr.mass_matrix(qr)).norm(), 1e-12);
+  EXPECT_LE((T.transpose() * ds.gravity_force(qs) - dr.gravity_force(qr)).norm(), 1e-12);
+  EXPECT_NEAR(ds.potential_energy(qs), dr.potential_energy(qr), 1e-12);
+}
+
+// Armature adds to the mass matrix diagonal and ABA honours it.
+TEST(Armature, AbaSolvesWithArmatureOnTheDiagonal) {
+  const Model plain = ball_model(true), with = ball_model(true, 0.25);
+  CopyDynamics dp(plain), dw(with);
+  std::mt19937 rng(3);
+  const Eigen::VectorXd q = test::random_configuration(with, rng), v = test::random_vector(with.nv, rng);
+  const Eigen::VectorXd tau = test::random_vector(with.nv, rng, 3.0);
+  const Eigen::MatrixXd M = dw.mass_matrix(q);
+  EXPECT_LE((M - dp.mass_matrix(q) - 0.25 * Eigen::MatrixXd::Identity(with.nv, with.nv)).norm(), 1e-14);
+  const Eigen::VectorXd expected = M.ldlt().solve(tau - dw.bias_force(q, v));
+  EXPECT_LE((dw.forward_dynamics(q, v, tau) - expected).norm(), 1e-12 * (1.0 + expected.norm()));
+}
+
+// A per-copy inertia override gives exactly the results of a model built
+// with those values, for every kernel that reads inertia.
+TEST(InertiaOverride, EveryKernelHonoursPerCopyValues) {
+  const Model base = test::load_shared_model("anymal_b", true);
+  Model heavier = base;
+  for (int b = 0; b < base.nbody; ++b) {
+    heavier.body_mass[b] *= 1.3;
+    heavier.body_com[b] += Eigen::Vector3d(0.01, -0.02, 0.005);
+    heavier.body_inertia[b] *= 1.2;
+  }
+  BatchDynamics<lane::simd<double>> over_base(base), over_heavier(heavier);
+  BatchState<double> s = over_base.make_state(3), h = over_heavier.make_state(3);
+  std::mt19937 rng(9);
+  for (int c = 0; c < 3; ++c) {
+    const Eigen::VectorXd q = test::random_configuration(base, rng), v = test::random_vector(base.nv, rng);
+    const Eigen::VectorXd tau = test::random_vector(base.nv, rng), wrench = test::random_vector(6 * base.nbody, rng);
+    for (BatchState<double>* st : {&s, &h}) {
+      st->q.set(c, q); st->v.set(c, v); st->tau.set(c, tau); st->qacc.set(c, tau); st->wrench.set(c, wrench);
+    }
+  }
+  for (int b = 0; b < base.nbody; ++b)
+    s.set_body_inertia(1, b, heavier.body_mass[b], heavier.body_com[b], heavier.body_inertia[b]);
+  using D = BatchDynamics<lane::simd<double>>;
+  using Run = std::function<void(const D&, const BatchState<double>&, BatchArray<double>&)>;
+  const std::vector<std::pair<int, Run>> kernels = {
+      {base.nv, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.forward_dynamics(st, o); }},
+      {base.nv, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.inverse_dynamics(st, o); }},
+      {base.nv, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.bias_force(st, o); }},
+      {base.nv * base.nv, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.mass_matrix(st, o); }},
+      {base.nv * base.nv, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.inverse_mass_matrix(st, o); }},
+      {6 * base.nbody * base.nv, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.com_jacobian(st, o); }},
+      {1, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.kinetic_energy(st, o); }},
+      {1, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.potential_energy(st, o); }},
+      {6 * base.nbody, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.incoming_joint_forces(st, o); }},
+  };
+  for (std::size_t k = 0; k < kernels.size(); ++k) {
+    BatchArray<double> a = over_base.make_array(3, kernels[k].first), b = over_heavier.make_array(3, kernels[k].first);
+    kernels[k].second(over_base, s, a);
+    kernels[k].second(over_heavier, h, b);
+    EXPECT_EQ(a.get(1), b.get(1)) << "kernel " << k << ": the overridden copy";
+    EXPECT_NE(a.get(0), b.get(0)) << "kernel " << k << ": the model's values";
+  }
+}
+
+// Linear and angular momentum about the world origin, from the COM Jacobian:
+// sum m v_com and sum (x_com x m v_com + R Ic R^T w).
+Eigen::Matrix<double, 6, 1> momentum(const Model& model, const CopyDynamics& dyn, const Eigen::VectorXd& q,
+                                     const Eigen::VectorXd& v) {
+  BatchDynamics<double> batch(model);
+  BatchState<double> s = batch.make_state(1);
+  s.q.set(0, q);
+  BatchArray<double> J = batch.make_array(1, 6 * model.nbody * model.nv);
+  batch.com_jacobian(s, J);
+  const Eigen::MatrixXd Jcom = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(J.get(0).data(), 6 * model.nbody, model.nv);
+  const auto poses = dyn.body_poses(q);
+  Eigen::Matrix<double, 6, 1> h = Eigen::Matrix<double, 6, 1>::Zero();
+  for (int b = 0; b < model.nbody; ++b) {
+    const Eigen::VectorXd vb = Jcom.middleRows<6>(6 * b) * v;
+    const Eigen::Vector3d x = poses[b] * model.body_com[b];
+    const Eigen::Matrix3d& R = poses[b].linear();
+    const Eigen::Vector3d p = model.body_mass[b] * vb.head<3>();
+    h.head<3>() += p;
+    h.tail<3>() += x.cross(p) + R * model.body_inertia[b] * R.transpose() * vb.tail<3>();
+  }
+  return h;
+}
+
+// Without gravity a floating robot conserves linear and angular momentum. 10 s
+// of RK4 at dt = 1 ms. The rotation is updated by the averaged body angular
+// velocity (RK on the rotation group without the dexp correction: second
+// order), so the drift allowed is 1e-6 of the momentum scale; measured:
+// 1e-9 (anymal_b) and 1e-10 (solo12). With the start-of-step rotation for the
+// position update the drift is first order (1e-2), which is why the base
+// position is integrated with the stages' world-frame velocities.
+TEST(Momentum, FloatingBaseWithoutGravityConservesMomentum) {
+  for (const char* name : {"anymal_b", "solo12"}) {
+    Model model = test::load_shared_model(name, true);
+    model.gravity.setZero();
+    CopyDynamics dyn(model);
+    Manifold manifold(model);
+    std::mt19937 rng(1);
+    Eigen::VectorXd q = test::random_configuration(model, rng), v = test::random_vector(model.nv, rng, 1.0);
+    const Eigen::VectorXd tau = Eigen::VectorXd::Zero(model.nv);
+    const Eigen::Matrix<double, 6, 1> h0 = momentum(model, dyn, q, v);
+    const double dt = 1e-3;
+    for (int step = 0; step < 10000; ++step) {
+      const Eigen::VectorXd a1 = dyn.forward_dynamics(q, v, tau);
+      const Eigen::VectorXd v2 = v + 0.5 * dt * a1;
+      const Eigen::VectorXd a2 = dyn.forward_dynamics(manifold.integrate(q, v, 0.5 * dt), v2, tau);
+      const Eigen::VectorXd v3 = v + 0.5 * dt * a2;
+      const Eigen::VectorXd a3 = dyn.forward_dynamics(manifold.integrate(q, v2, 0.5 * dt), v3, tau);
+      const Eigen::VectorXd v4 = v + dt * a3;
+      const Eigen::VectorXd a4 = dyn.forward_dynamics(manifold.integrate(q, v3, dt), v4, tau);
+      // The base position moves with each stage's world-frame velocity
+      // R_k v_k: integrate() turns a body-frame velocity with the rotation at
+      // the start of the step, which is only first order for a spinning base.
+      const Eigen::VectorXd q2 = manifold.integrate(q, v, 0.5 * dt), q3 = manifold.integrate(q, v2, 0.5 * dt);
+      const Eigen::VectorXd q4 = manifold.integrate(q, v3, dt);
+      auto world_velocity = [](const Eigen::VectorXd& qs, const Eigen::VectorXd& vs) -> Eigen::Vector3d {
+        return Eigen::Quaterniond(qs[3], qs[4], qs[5], qs[6]).normalized() * Eigen::Vector3d(vs.head<3>());
+      };
+      const Eigen::Vector3d dp = dt / 6.0 * (world_velocity(q, v) + 2 * world_velocity(q2, v2) +
+                                             2 * world_velocity(q3, v3) + world_velocity(q4, v4));
+      const Eigen::Vector3d p = q.head<3>();
+      q = manifold.integrate(q, (v + 2 * v2 + 2 * v3 + v4) / 6.0, dt);
+      q.head<3>() = p + dp;
+      v += dt * (a1 + 2 * a2 + 2 * a3 + a4) / 6.0;
+    }
+    const Eigen::Matrix<double, 6, 1> h1 = momentum(model, dyn, q, v);
+    EXPECT_GT(h0.norm(), 1e-2) << name;
+    EXPECT_LE((h1 - h0).norm(), 1e-6 * (1.0 + h0.norm())) << name << ": h0 " << h0.transpose() << " h1 " << h1.transpose();
+    RecordProperty(std::string(name) + "_momentum_drift", std::to_string((h1 - h0).norm()));
+  }
+}
+
+}  // namespace
+}  // namespace lockstep
