@@ -33,13 +33,86 @@ inline void spd_inverse(int n, const L* D, L* Dinv) {
   }
 }
 
+// Pass 2 for body b with an N-DOF joint (N a compile-time constant so the
+// small loops unroll): U = IA S, D = S^T U + armature, u = tau - S^T pA, and
+// the articulated inertia and bias handed to the parent.
+template <int N, class L>
+inline void aba_backward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, const int* axes,
+                               const BlockInputs<lane::scalar_t<L>>& in, Workspace<L>& ws) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const int dof0 = km.body_dof_offset[b];
+  const Inertia6<L>& IA = ws.inertia[b];
+  const Vec6<L>& pA = ws.force[b];
+  L* U = &ws.joint_U[6 * dof0];  // column k at U + 6k
+  for (int k = 0; k < N; ++k) {
+    for (int r = 0; r < 6; ++r) U[6 * k + r] = spatial::at(IA, r, axes[k]);
+    const L tau_k = in.tau ? lane::load<L>(in.tau + (dof0 + k) * W) : L(T(0));
+    ws.joint_u[dof0 + k] = tau_k - pA.e[axes[k]];
+  }
+  L* Dinv = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
+  if constexpr (N == 1) {
+    Dinv[0] = L(T(1)) / (U[axes[0]] + L(km.dof_armature[dof0]));
+  } else {
+    L D[N * N];
+    for (int k = 0; k < N; ++k)
+      for (int l = 0; l < N; ++l) D[k * N + l] = U[6 * l + axes[k]];
+    for (int k = 0; k < N; ++k) D[k * N + k] = D[k * N + k] + L(km.dof_armature[dof0 + k]);
+    spd_inverse(N, D, Dinv);
+  }
+  const int parent = km.body_parent[b];
+  if (parent < 0) return;
+  // Ia = IA - U D^-1 U^T;  pa = pA + Ia c + U D^-1 u   (RBDA eq. 7.42-7.43)
+  L UDinv[6 * N];
+  for (int r = 0; r < 6; ++r)
+    for (int l = 0; l < N; ++l) {
+      L sum = U[r] * Dinv[l];
+      for (int k = 1; k < N; ++k) sum = lane::fmadd(U[6 * k + r], Dinv[k * N + l], sum);
+      UDinv[r * N + l] = sum;
+    }
+  Inertia6<L> Ia = IA;
+  for (int r = 0; r < 6; ++r)
+    for (int c = r; c < 6; ++c) {
+      L& e = spatial::at(Ia, r, c);
+      for (int k = 0; k < N; ++k) e = lane::fnmadd(UDinv[r * N + k], U[6 * k + c], e);
+    }
+  Vec6<L> pa = spatial::add(pA, spatial::mul(Ia, ws.bias_accel[b]));
+  for (int r = 0; r < 6; ++r)
+    for (int k = 0; k < N; ++k) pa.e[r] = lane::fmadd(UDinv[r * N + k], ws.joint_u[dof0 + k], pa.e[r]);
+  spatial::add_to(ws.inertia[parent], spatial::inertia_to_parent(ws.local[b], Ia));
+  ws.force[parent] = spatial::add(ws.force[parent], spatial::force_to_parent(ws.local[b], pa));
+}
+
+// Pass 3 for body b: qacc = D^-1 (u - U^T a'), a = a' + S qacc.
+template <int N, class L>
+inline void aba_forward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, const int* axes, const Vec6<L>& a0,
+                              Workspace<L>& ws, lane::scalar_t<L>* qacc_out) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int dof0 = km.body_dof_offset[b];
+  const int parent = km.body_parent[b];
+  Vec6<L> a = spatial::add(spatial::motion_to_child(ws.local[b], parent < 0 ? a0 : ws.accel[parent]), ws.bias_accel[b]);
+  const L* U = &ws.joint_U[6 * dof0];
+  const L* Dinv = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
+  L rhs[N];
+  for (int k = 0; k < N; ++k) {
+    L sum = ws.joint_u[dof0 + k];
+    for (int r = 0; r < 6; ++r) sum = lane::fnmadd(U[6 * k + r], a.e[r], sum);
+    rhs[k] = sum;
+  }
+  for (int k = 0; k < N; ++k) {
+    L qdd = Dinv[k * N] * rhs[0];
+    for (int l = 1; l < N; ++l) qdd = lane::fmadd(Dinv[k * N + l], rhs[l], qdd);
+    lane::store(qdd, qacc_out + (dof0 + k) * W);
+    a.e[axes[k]] = a.e[axes[k]] + qdd;
+  }
+  ws.accel[b] = a;
+}
+
 // Needs ws.local (joint_transforms) and, with a wrench, ws.world.
 // qacc_out: (nv) per lane.
 template <class L>
 void aba(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in, Workspace<L>& ws,
          lane::scalar_t<L>* qacc_out) {
-  using T = lane::scalar_t<L>;
-  constexpr std::size_t W = lane::width_v<L>;
   // pass 1: velocities, velocity-product accelerations, rigid inertias and bias forces
   body_velocities<L>(km, in.v, ws);
   for (int b = 0; b < km.nbody; ++b) {
@@ -53,72 +126,21 @@ void aba(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scala
   // pass 2 (leaves to roots): articulated inertias IA and bias forces pA
   for (int b = km.nbody - 1; b >= 0; --b) {
     int axes[6];
-    const int n = joint_axes(km.body_joint[b], axes);
-    const int dof0 = km.body_dof_offset[b];
-    Inertia6<L>& IA = ws.inertia[b];
-    const Vec6<L>& pA = ws.force[b];
-    L* U = &ws.joint_U[6 * dof0];  // U = IA S, column k at U + 6k
-    L D[36];
-    for (int k = 0; k < n; ++k) {
-      for (int r = 0; r < 6; ++r) U[6 * k + r] = spatial::at(IA, r, axes[k]);
-      const T tau = 0;
-      const L tau_k = in.tau ? lane::load<L>(in.tau + (dof0 + k) * W) : L(tau);
-      ws.joint_u[dof0 + k] = tau_k - pA.e[axes[k]];
+    switch (joint_axes(km.body_joint[b], axes)) {
+      case 1: aba_backward_joint<1>(km, b, axes, in, ws); break;
+      case 3: aba_backward_joint<3>(km, b, axes, in, ws); break;
+      case 6: aba_backward_joint<6>(km, b, axes, in, ws); break;
     }
-    for (int k = 0; k < n; ++k)
-      for (int l = 0; l < n; ++l) D[k * n + l] = U[6 * l + axes[k]];
-    for (int k = 0; k < n; ++k) D[k * n + k] = D[k * n + k] + L(km.dof_armature[dof0 + k]);
-    L* Dinv = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
-    if (n == 1) Dinv[0] = L(T(1)) / D[0];
-    else spd_inverse(n, D, Dinv);
-
-    const int parent = km.body_parent[b];
-    if (parent < 0) continue;
-    // Ia = IA - U D^-1 U^T;  pa = pA + Ia c + U D^-1 u   (RBDA eq. 7.42-7.43)
-    L UDinv[36];  // (6 x n)
-    for (int r = 0; r < 6; ++r)
-      for (int l = 0; l < n; ++l) {
-        L s = U[r] * Dinv[l];
-        for (int k = 1; k < n; ++k) s = lane::fmadd(U[6 * k + r], Dinv[k * n + l], s);
-        UDinv[r * n + l] = s;
-      }
-    Inertia6<L> Ia = IA;
-    for (int r = 0; r < 6; ++r)
-      for (int c = r; c < 6; ++c) {
-        L& e = spatial::at(Ia, r, c);
-        for (int k = 0; k < n; ++k) e = lane::fnmadd(UDinv[r * n + k], U[6 * k + c], e);
-      }
-    Vec6<L> pa = spatial::add(pA, spatial::mul(Ia, ws.bias_accel[b]));
-    for (int r = 0; r < 6; ++r)
-      for (int k = 0; k < n; ++k) pa.e[r] = lane::fmadd(UDinv[r * n + k], ws.joint_u[dof0 + k], pa.e[r]);
-    spatial::add_to(ws.inertia[parent], spatial::inertia_to_parent(ws.local[b], Ia));
-    ws.force[parent] = spatial::add(ws.force[parent], spatial::force_to_parent(ws.local[b], pa));
   }
   // pass 3 (roots to leaves): accelerations
   const Vec6<L> a0 = world_acceleration<L>(in.gravity);
   for (int b = 0; b < km.nbody; ++b) {
     int axes[6];
-    const int n = joint_axes(km.body_joint[b], axes);
-    const int dof0 = km.body_dof_offset[b];
-    const int parent = km.body_parent[b];
-    const Vec6<L> a_parent = parent < 0 ? a0 : ws.accel[parent];
-    Vec6<L> a = spatial::add(spatial::motion_to_child(ws.local[b], a_parent), ws.bias_accel[b]);
-    const L* U = &ws.joint_U[6 * dof0];
-    const L* Dinv = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
-    L rhs[6], qdd[6];
-    for (int k = 0; k < n; ++k) {
-      L s = ws.joint_u[dof0 + k];
-      for (int r = 0; r < 6; ++r) s = lane::fnmadd(U[6 * k + r], a.e[r], s);
-      rhs[k] = s;
+    switch (joint_axes(km.body_joint[b], axes)) {
+      case 1: aba_forward_joint<1>(km, b, axes, a0, ws, qacc_out); break;
+      case 3: aba_forward_joint<3>(km, b, axes, a0, ws, qacc_out); break;
+      case 6: aba_forward_joint<6>(km, b, axes, a0, ws, qacc_out); break;
     }
-    for (int k = 0; k < n; ++k) {
-      L s = Dinv[k * n] * rhs[0];
-      for (int l = 1; l < n; ++l) s = lane::fmadd(Dinv[k * n + l], rhs[l], s);
-      qdd[k] = s;
-      lane::store(s, qacc_out + (dof0 + k) * W);
-    }
-    for (int k = 0; k < n; ++k) a.e[axes[k]] = a.e[axes[k]] + qdd[k];
-    ws.accel[b] = a;
   }
 }
 

@@ -126,15 +126,19 @@ template <class L> inline Vec3<L> sym_mul(const L* S, const Vec3<L>& a) {
           lane::fmadd(S[2], a.z, lane::fmadd(S[5], a.y, S[4] * a.x))};
 }
 
-// Element (r, c) of the full 6x6 matrix of an Inertia6.
+// Element (r, c) of the full 6x6 matrix of an Inertia6, as an offset into
+// its 21 stored values (A, then B row-major, then C): a table lookup rather
+// than branches, so loops over (r, c) compile to straight loads.
+inline constexpr int kSym6[6][6] = {
+    {0, 3, 4, 6, 7, 8},     {3, 1, 5, 9, 10, 11},   {4, 5, 2, 12, 13, 14},
+    {6, 9, 12, 15, 18, 19}, {7, 10, 13, 18, 16, 20}, {8, 11, 14, 19, 20, 17}};
+static_assert(kSym6[0][3] == 6 && kSym6[5][4] == 15 + 5, "B follows A, C follows B");
 template <class L> inline const L& at(const Inertia6<L>& I, int r, int c) {
-  if (r < 3 && c < 3) return I.A[kSym3[r][c]];
-  if (r < 3) return I.B[3 * r + (c - 3)];
-  if (c < 3) return I.B[3 * c + (r - 3)];
-  return I.C[kSym3[r - 3][c - 3]];
+  static_assert(sizeof(Inertia6<L>) == 21 * sizeof(L), "Inertia6 is 21 contiguous lanes");
+  return reinterpret_cast<const L*>(&I)[kSym6[r][c]];
 }
 template <class L> inline L& at(Inertia6<L>& I, int r, int c) {
-  return const_cast<L&>(at(static_cast<const Inertia6<L>&>(I), r, c));
+  return reinterpret_cast<L*>(&I)[kSym6[r][c]];
 }
 
 // Spatial inertia of a rigid body with mass m, centre of mass c and rotational

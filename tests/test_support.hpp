@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 
+#include <ostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -47,6 +48,12 @@ inline std::vector<ModelCase> all_model_cases() {
   return cases;
 }
 inline std::string case_name(const ModelCase& c) { return c.name + (c.floating_base ? "_floating" : "_fixed"); }
+inline void PrintTo(const ModelCase& c, std::ostream* os) { *os << case_name(c); }
+inline std::vector<ModelCase> fixed_model_cases() {
+  std::vector<ModelCase> cases;
+  for (const std::string& name : shared_model_names()) cases.push_back({name, false});
+  return cases;
+}
 
 // A random configuration: joint angles in [-1.5, 1.5] rad (inside the
 // limits where the joint has them), prismatic joints inside their limits,
