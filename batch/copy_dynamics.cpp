@@ -35,6 +35,19 @@ class OneCopy {
     state_.wrench.set(0, flat);
   }
 
+  Eigen::VectorXd integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const {
+    BatchArray<T> qa = configuration(q, "q"), va = dynamics_.make_array(1, dynamics_.model().nv);
+    set(va, v, "v");
+    BatchArray<T> out = dynamics_.make_array(1, dynamics_.model().nq);
+    dynamics_.integrate(qa, va, static_cast<T>(dt), out);
+    return out.get(0);
+  }
+  Eigen::VectorXd difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1) const {
+    BatchArray<T> out = dynamics_.make_array(1, dynamics_.model().nv);
+    dynamics_.difference(configuration(q0, "q0"), configuration(q1, "q1"), out);
+    return out.get(0);
+  }
+
   // Runs f(dynamics, state, out) into an output array of `size` values.
   template <class F>
   Eigen::VectorXd run(F&& f, int size) const {
@@ -44,7 +57,12 @@ class OneCopy {
   }
 
  private:
-  void set(BatchArray<T>& array, const Eigen::VectorXd& values, const char* what) {
+  BatchArray<T> configuration(const Eigen::VectorXd& q, const char* what) const {
+    BatchArray<T> a = dynamics_.make_array(1, dynamics_.model().nq);
+    set(a, q, what);
+    return a;
+  }
+  static void set(BatchArray<T>& array, const Eigen::VectorXd& values, const char* what) {
     if (values.size() != array.size())
       throw std::invalid_argument(std::string(what) + ": expected " + std::to_string(array.size()) + " values, got " +
                                   std::to_string(values.size()));
@@ -147,6 +165,32 @@ double CopyDynamics::kinetic_energy(const Eigen::VectorXd& q, const Eigen::Vecto
 }
 double CopyDynamics::potential_energy(const Eigen::VectorXd& q) const {
   return LOCKSTEP_ONE_COPY(potential_energy, 1, q, zeros(nv), zeros(nv), zeros(nv), nullptr)[0];
+}
+
+Eigen::MatrixXd CopyDynamics::com_jacobian(const Eigen::VectorXd& q) const {
+  const int rows = 6 * model_->nbody, n = model_->nv;
+  const Eigen::VectorXd flat = LOCKSTEP_ONE_COPY(com_jacobian, rows * n, q, zeros(nv), zeros(nv), zeros(nv), nullptr);
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(flat.data(), rows, n);
+}
+Eigen::MatrixXd CopyDynamics::point_jacobian(const Eigen::VectorXd& q, int frame, const Eigen::Vector3d& offset) const {
+  const int n = model_->nv;
+  const Eigen::VectorXd flat = impl_->visit([&](auto& c) {
+    c.set_q(q);
+    return c.run([&](const auto& dyn, const auto& state, auto& out) { dyn.point_jacobian(state, frame, offset, out); }, 6 * n);
+  });
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(flat.data(), 6, n);
+}
+Eigen::MatrixXd CopyDynamics::incoming_joint_forces(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                                                    const Eigen::VectorXd& tau, const Eigen::MatrixXd* link_wrench) const {
+  const Eigen::VectorXd flat =
+      LOCKSTEP_ONE_COPY(incoming_joint_forces, 6 * model_->nbody, q, v, tau, zeros(nv), link_wrench);
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>>(flat.data(), model_->nbody, 6);
+}
+Eigen::VectorXd CopyDynamics::integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const {
+  return impl_->visit([&](auto& c) { return c.integrate(q, v, dt); });
+}
+Eigen::VectorXd CopyDynamics::difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1) const {
+  return impl_->visit([&](auto& c) { return c.difference(q0, q1); });
 }
 
 #undef LOCKSTEP_ONE_COPY

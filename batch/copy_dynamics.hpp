@@ -46,6 +46,17 @@ class CopyDynamics {
                                    const Eigen::MatrixXd* link_wrench = nullptr) const;
   double kinetic_energy(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const;
   double potential_energy(const Eigen::VectorXd& q) const;
+  // (6 nbody x nv) rows [v_com; w] of every body, world axes (PhysX's dense Jacobian).
+  Eigen::MatrixXd com_jacobian(const Eigen::VectorXd& q) const;
+  // (6 x nv) rows [v; w], world axes, of the point at `offset` in frame `frame`.
+  Eigen::MatrixXd point_jacobian(const Eigen::VectorXd& q, int frame, const Eigen::Vector3d& offset) const;
+  // (nbody x 6) force and torque each joint transmits to its child under tau,
+  // world axes, torque about the joint origin.
+  Eigen::MatrixXd incoming_joint_forces(const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& tau,
+                                        const Eigen::MatrixXd* link_wrench = nullptr) const;
+  // q (+) v dt on the configuration manifold, and its inverse.
+  Eigen::VectorXd integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const;
+  Eigen::VectorXd difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1) const;
 
  private:
   struct Impl;

@@ -16,47 +16,24 @@ namespace {
 constexpr double kStep = 1e-5;
 constexpr double kDifferenceTolerance = 1e-6;
 
-// One-copy manifold operations through the batch kernels (scalar lane).
-struct Manifold {
-  explicit Manifold(const Model& m) : model(m), dyn(m) {}
-  Eigen::VectorXd integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const {
-    BatchArray<double> qa = dyn.make_array(1, model.nq), va = dyn.make_array(1, model.nv), out = dyn.make_array(1, model.nq);
-    qa.set(0, q);
-    va.set(0, v);
-    dyn.integrate(qa, va, dt, out);
-    return out.get(0);
-  }
-  Eigen::VectorXd difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1) const {
-    BatchArray<double> a = dyn.make_array(1, model.nq), b = dyn.make_array(1, model.nq), out = dyn.make_array(1, model.nv);
-    a.set(0, q0);
-    b.set(0, q1);
-    dyn.difference(a, b, out);
-    return out.get(0);
-  }
-  const Model& model;
-  BatchDynamics<double> dyn;
-};
-
 class Utilities : public ::testing::TestWithParam<test::ModelCase> {
  protected:
   void SetUp() override {
     model_ = test::load_shared_model(GetParam().name, GetParam().floating_base);
     dyn_ = std::make_unique<CopyDynamics>(model_, Precision::Double);
-    manifold_ = std::make_unique<Manifold>(model_);
   }
   Model model_;
   std::unique_ptr<CopyDynamics> dyn_;
-  std::unique_ptr<Manifold> manifold_;
   std::mt19937 rng_{5};
 };
 
 TEST_P(Utilities, IntegrateAndDifferenceAreInverse) {
   const Eigen::VectorXd q0 = test::random_configuration(model_, rng_);
   const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0);
-  const Eigen::VectorXd q1 = manifold_->integrate(q0, v, 0.5);
-  EXPECT_LE((manifold_->difference(q0, q1) - 0.5 * v).norm(), 1e-12);
+  const Eigen::VectorXd q1 = dyn_->integrate(q0, v, 0.5);
+  EXPECT_LE((dyn_->difference(q0, q1) - 0.5 * v).norm(), 1e-12);
   const Eigen::VectorXd q2 = test::random_configuration(model_, rng_);
-  const Eigen::VectorXd back = manifold_->integrate(q0, manifold_->difference(q0, q2), 1.0);
+  const Eigen::VectorXd back = dyn_->integrate(q0, dyn_->difference(q0, q2), 1.0);
   // Compare poses rather than quaternions (q and -q are the same rotation).
   const auto a = dyn_->frame_poses(back), b = dyn_->frame_poses(q2);
   for (std::size_t f = 0; f < a.size(); ++f) EXPECT_LE((a[f].matrix() - b[f].matrix()).norm(), 1e-12) << model_.frame_name[f];
@@ -66,14 +43,9 @@ TEST_P(Utilities, IntegrateAndDifferenceAreInverse) {
 TEST_P(Utilities, JacobiansMatchFiniteDifferencesOfKinematics) {
   const Eigen::VectorXd q = test::random_configuration(model_, rng_);
   const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0);
-  BatchDynamics<double> batch(model_);
-  BatchState<double> s = batch.make_state(1);
-  s.q.set(0, q);
-  BatchArray<double> J = batch.make_array(1, 6 * model_.nbody * model_.nv);
-  batch.com_jacobian(s, J);
-  const Eigen::MatrixXd Jcom = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(J.get(0).data(), 6 * model_.nbody, model_.nv);
-  const auto plus = dyn_->body_poses(manifold_->integrate(q, v, kStep));
-  const auto minus = dyn_->body_poses(manifold_->integrate(q, v, -kStep));
+  const Eigen::MatrixXd Jcom = dyn_->com_jacobian(q);
+  const auto plus = dyn_->body_poses(dyn_->integrate(q, v, kStep));
+  const auto minus = dyn_->body_poses(dyn_->integrate(q, v, -kStep));
   for (int b = 0; b < model_.nbody; ++b) {
     const Eigen::Vector3d com_plus = plus[b] * model_.body_com[b], com_minus = minus[b] * model_.body_com[b];
     const Eigen::Vector3d v_fd = (com_plus - com_minus) / (2 * kStep);
@@ -87,11 +59,9 @@ TEST_P(Utilities, JacobiansMatchFiniteDifferencesOfKinematics) {
   // A point on the last frame.
   const int frame = static_cast<int>(model_.frame_name.size()) - 1;
   const Eigen::Vector3d offset(0.05, -0.02, 0.1);
-  BatchArray<double> Jp = batch.make_array(1, 6 * model_.nv);
-  batch.point_jacobian(s, frame, offset, Jp);
-  const Eigen::MatrixXd Jpoint = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(Jp.get(0).data(), 6, model_.nv);
-  const Eigen::Vector3d x_plus = dyn_->frame_poses(manifold_->integrate(q, v, kStep))[frame] * offset;
-  const Eigen::Vector3d x_minus = dyn_->frame_poses(manifold_->integrate(q, v, -kStep))[frame] * offset;
+  const Eigen::MatrixXd Jpoint = dyn_->point_jacobian(q, frame, offset);
+  const Eigen::Vector3d x_plus = dyn_->frame_poses(dyn_->integrate(q, v, kStep))[frame] * offset;
+  const Eigen::Vector3d x_minus = dyn_->frame_poses(dyn_->integrate(q, v, -kStep))[frame] * offset;
   const Eigen::Vector3d v_fd = (x_plus - x_minus) / (2 * kStep);
   EXPECT_LE(((Jpoint * v).head<3>() - v_fd).norm(), kDifferenceTolerance * (1.0 + v_fd.norm()));
 }
@@ -100,12 +70,7 @@ TEST_P(Utilities, JacobiansMatchFiniteDifferencesOfKinematics) {
 TEST_P(Utilities, ExternalForceIsJacobianTransposeTimesWrench) {
   const Eigen::VectorXd q = test::random_configuration(model_, rng_);
   const Eigen::MatrixXd wrench = Eigen::MatrixXd::Random(model_.nbody, 6);
-  BatchDynamics<double> batch(model_);
-  BatchState<double> s = batch.make_state(1);
-  s.q.set(0, q);
-  BatchArray<double> J = batch.make_array(1, 6 * model_.nbody * model_.nv);
-  batch.com_jacobian(s, J);
-  const Eigen::MatrixXd Jcom = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(J.get(0).data(), 6 * model_.nbody, model_.nv);
+  const Eigen::MatrixXd Jcom = dyn_->com_jacobian(q);
   Eigen::VectorXd F(6 * model_.nbody);
   for (int b = 0; b < model_.nbody; ++b) F.segment<6>(6 * b) = wrench.row(b).transpose();
   const Eigen::VectorXd expected = Jcom.transpose() * F;
@@ -122,19 +87,12 @@ TEST_P(Utilities, IncomingJointForcesProjectToJointForces) {
   const Eigen::VectorXd q = test::random_configuration(model_, rng_);
   const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0);
   const Eigen::VectorXd tau = test::random_vector(model_.nv, rng_, 5.0);
-  BatchDynamics<double> batch(model_);
-  BatchState<double> s = batch.make_state(1);
-  s.q.set(0, q);
-  s.v.set(0, v);
-  s.tau.set(0, tau);
-  BatchArray<double> out = batch.make_array(1, 6 * model_.nbody);
-  batch.incoming_joint_forces(s, out);
-  const Eigen::VectorXd f = out.get(0);
+  const Eigen::MatrixXd f = dyn_->incoming_joint_forces(q, v, tau);
   const auto poses = dyn_->body_poses(q);
   for (int b = 0; b < model_.nbody; ++b) {
     const int d = model_.body_dof_offset[b];
     const Eigen::Vector3d z = poses[b].linear().col(2);
-    const Eigen::Vector3d force = f.segment<3>(6 * b), torque = f.segment<3>(6 * b + 3);
+    const Eigen::Vector3d force = f.row(b).head<3>().transpose(), torque = f.row(b).tail<3>().transpose();
     switch (model_.body_joint[b]) {
       case JointType::Revolute: EXPECT_NEAR(z.dot(torque), tau[d], 1e-9 * (1.0 + force.norm() + torque.norm())); break;
       case JointType::Prismatic: EXPECT_NEAR(z.dot(force), tau[d], 1e-9 * (1.0 + force.norm() + torque.norm())); break;
@@ -154,14 +112,10 @@ INSTANTIATE_TEST_SUITE_P(SharedModels, Utilities, ::testing::ValuesIn(test::all_
 TEST(IncomingJointForce, RootJointCarriesTheWeight) {
   const Model model = test::load_shared_model("ur5", false);
   CopyDynamics dyn(model);
-  const Eigen::VectorXd q = model.neutral_configuration();
-  BatchDynamics<double> batch(model);
-  BatchState<double> s = batch.make_state(1);
-  s.tau.set(0, dyn.gravity_force(q));
-  BatchArray<double> out = batch.make_array(1, 6 * model.nbody);
-  batch.incoming_joint_forces(s, out);
+  const Eigen::VectorXd q = model.neutral_configuration(), zero = Eigen::VectorXd::Zero(model.nv);
+  const Eigen::MatrixXd f = dyn.incoming_joint_forces(q, zero, dyn.gravity_force(q));
   const Eigen::Vector3d expected = -model.total_mass() * model.gravity;
-  EXPECT_LE((out.get(0).head<3>() - expected).norm(), 1e-9 * expected.norm());
+  EXPECT_LE((f.row(0).head<3>().transpose() - expected).norm(), 1e-9 * expected.norm());
 }
 
 // Builder models for the spherical and armature tests: a base fixed to the
@@ -293,12 +247,7 @@ TEST(InertiaOverride, EveryKernelHonoursPerCopyValues) {
 // sum m v_com and sum (x_com x m v_com + R Ic R^T w).
 Eigen::Matrix<double, 6, 1> momentum(const Model& model, const CopyDynamics& dyn, const Eigen::VectorXd& q,
                                      const Eigen::VectorXd& v) {
-  BatchDynamics<double> batch(model);
-  BatchState<double> s = batch.make_state(1);
-  s.q.set(0, q);
-  BatchArray<double> J = batch.make_array(1, 6 * model.nbody * model.nv);
-  batch.com_jacobian(s, J);
-  const Eigen::MatrixXd Jcom = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(J.get(0).data(), 6 * model.nbody, model.nv);
+  const Eigen::MatrixXd Jcom = dyn.com_jacobian(q);
   const auto poses = dyn.body_poses(q);
   Eigen::Matrix<double, 6, 1> h = Eigen::Matrix<double, 6, 1>::Zero();
   for (int b = 0; b < model.nbody; ++b) {
@@ -324,7 +273,6 @@ TEST(Momentum, FloatingBaseWithoutGravityConservesMomentum) {
     Model model = test::load_shared_model(name, true);
     model.gravity.setZero();
     CopyDynamics dyn(model);
-    Manifold manifold(model);
     std::mt19937 rng(1);
     Eigen::VectorXd q = test::random_configuration(model, rng), v = test::random_vector(model.nv, rng, 1.0);
     const Eigen::VectorXd tau = Eigen::VectorXd::Zero(model.nv);
@@ -333,23 +281,23 @@ TEST(Momentum, FloatingBaseWithoutGravityConservesMomentum) {
     for (int step = 0; step < 10000; ++step) {
       const Eigen::VectorXd a1 = dyn.forward_dynamics(q, v, tau);
       const Eigen::VectorXd v2 = v + 0.5 * dt * a1;
-      const Eigen::VectorXd a2 = dyn.forward_dynamics(manifold.integrate(q, v, 0.5 * dt), v2, tau);
+      const Eigen::VectorXd a2 = dyn.forward_dynamics(dyn.integrate(q, v, 0.5 * dt), v2, tau);
       const Eigen::VectorXd v3 = v + 0.5 * dt * a2;
-      const Eigen::VectorXd a3 = dyn.forward_dynamics(manifold.integrate(q, v2, 0.5 * dt), v3, tau);
+      const Eigen::VectorXd a3 = dyn.forward_dynamics(dyn.integrate(q, v2, 0.5 * dt), v3, tau);
       const Eigen::VectorXd v4 = v + dt * a3;
-      const Eigen::VectorXd a4 = dyn.forward_dynamics(manifold.integrate(q, v3, dt), v4, tau);
+      const Eigen::VectorXd a4 = dyn.forward_dynamics(dyn.integrate(q, v3, dt), v4, tau);
       // The base position moves with each stage's world-frame velocity
       // R_k v_k: integrate() turns a body-frame velocity with the rotation at
       // the start of the step, which is only first order for a spinning base.
-      const Eigen::VectorXd q2 = manifold.integrate(q, v, 0.5 * dt), q3 = manifold.integrate(q, v2, 0.5 * dt);
-      const Eigen::VectorXd q4 = manifold.integrate(q, v3, dt);
+      const Eigen::VectorXd q2 = dyn.integrate(q, v, 0.5 * dt), q3 = dyn.integrate(q, v2, 0.5 * dt);
+      const Eigen::VectorXd q4 = dyn.integrate(q, v3, dt);
       auto world_velocity = [](const Eigen::VectorXd& qs, const Eigen::VectorXd& vs) -> Eigen::Vector3d {
         return Eigen::Quaterniond(qs[3], qs[4], qs[5], qs[6]).normalized() * Eigen::Vector3d(vs.head<3>());
       };
       const Eigen::Vector3d dp = dt / 6.0 * (world_velocity(q, v) + 2 * world_velocity(q2, v2) +
                                              2 * world_velocity(q3, v3) + world_velocity(q4, v4));
       const Eigen::Vector3d p = q.head<3>();
-      q = manifold.integrate(q, (v + 2 * v2 + 2 * v3 + v4) / 6.0, dt);
+      q = dyn.integrate(q, (v + 2 * v2 + 2 * v3 + v4) / 6.0, dt);
       q.head<3>() = p + dp;
       v += dt * (a1 + 2 * a2 + 2 * a3 + a4) / 6.0;
     }
