@@ -20,19 +20,6 @@ void BatchDynamics<L>::for_each_block(int blocks, F&& f) const {
 }
 
 template <class L>
-BlockInputs<lane::scalar_t<L>> BatchDynamics<L>::inputs(const BatchState<Scalar>& s, int block) const {
-  BlockInputs<Scalar> in;
-  in.q = s.q.block(block);
-  in.v = s.v.block(block);
-  in.tau = s.tau.block(block);
-  in.qacc = s.qacc.block(block);
-  in.wrench = s.wrench.block(block);
-  in.inertia = s.inertia.block(block);
-  in.gravity = s.gravity.block(block);
-  return in;
-}
-
-template <class L>
 void BatchDynamics<L>::check(const BatchArray<Scalar>& array, int copies, int size, const char* what) const {
   if (array.copies() != copies || array.size() != size || array.width() != kWidth)
     throw std::invalid_argument(std::string(what) + ": expected an array of " + std::to_string(copies) + " copies x " +
@@ -74,7 +61,7 @@ void BatchDynamics<L>::forward_dynamics(const BatchState<Scalar>& s, BatchArray<
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
     world_transforms<L>(km_, ws);
-    BlockInputs<Scalar> in = inputs(s, b);
+    BlockInputs<Scalar> in = block_inputs(s, b);
     in.qacc = nullptr;
     aba<L>(km_, in, ws, qacc.block(b));
   });
@@ -86,7 +73,7 @@ void BatchDynamics<L>::inverse_dynamics(const BatchState<Scalar>& s, BatchArray<
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
     world_transforms<L>(km_, ws);
-    BlockInputs<Scalar> in = inputs(s, b);
+    BlockInputs<Scalar> in = block_inputs(s, b);
     in.tau = nullptr;
     rnea<L>(km_, in, ws, tau.block(b));
   });
@@ -182,7 +169,7 @@ void BatchDynamics<L>::kinetic_energy(const BatchState<Scalar>& s, BatchArray<Sc
   check(out, s.copies(), 1, "kinetic_energy");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
-    lane::store(lockstep::kinetic_energy<L>(km_, inputs(s, b), ws), out.block(b));
+    lane::store(lockstep::kinetic_energy<L>(km_, block_inputs(s, b), ws), out.block(b));
   });
 }
 
@@ -192,7 +179,7 @@ void BatchDynamics<L>::potential_energy(const BatchState<Scalar>& s, BatchArray<
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
     world_transforms<L>(km_, ws);
-    lane::store(lockstep::potential_energy<L>(km_, inputs(s, b), ws), out.block(b));
+    lane::store(lockstep::potential_energy<L>(km_, block_inputs(s, b), ws), out.block(b));
   });
 }
 
@@ -202,7 +189,7 @@ void BatchDynamics<L>::incoming_joint_forces(const BatchState<Scalar>& s, BatchA
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
     world_transforms<L>(km_, ws);
-    BlockInputs<Scalar> in = inputs(s, b);
+    BlockInputs<Scalar> in = block_inputs(s, b);
     in.qacc = nullptr;
     lockstep::incoming_joint_forces<L>(km_, in, ws, reinterpret_cast<Scalar*>(ws.vector.data()), out.block(b));
   });

@@ -14,6 +14,20 @@
 
 namespace lockstep {
 
+// The kernel inputs of one block of a batch state.
+template <class T>
+BlockInputs<T> block_inputs(const BatchState<T>& s, int block) {
+  BlockInputs<T> in;
+  in.q = s.q.block(block);
+  in.v = s.v.block(block);
+  in.tau = s.tau.block(block);
+  in.qacc = s.qacc.block(block);
+  in.wrench = s.wrench.block(block);
+  in.inertia = s.inertia.block(block);
+  in.gravity = s.gravity.block(block);
+  return in;
+}
+
 template <class L>
 class BatchDynamics {
  public:
@@ -65,7 +79,6 @@ class BatchDynamics {
   // Runs f(block, workspace) for every block, in parallel.
   template <class F>
   void for_each_block(int blocks, F&& f) const;
-  BlockInputs<Scalar> inputs(const BatchState<Scalar>& s, int block) const;
   void check(const BatchArray<Scalar>& array, int copies, int size, const char* what) const;
 
   const Model* model_;

@@ -4,9 +4,8 @@
 // kernel's time; ABA and RNEA run with gravity and without link wrenches.
 //
 //   build/release/bin/lockstep_bench --benchmark_filter=BM_aba
+#include "batch/batch_dynamics.hpp"
 #include "io/urdf_import.hpp"
-#include "kernels/kernels.hpp"
-#include "layout/batch_state.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -61,13 +60,8 @@ void run_kernel(benchmark::State& bench, const ModelChoice& choice, Kernel kerne
   BatchArray<T> out(copies, size, W);
   for (auto _ : bench) {
     for (int b = 0; b < s.q.blocks(); ++b) {
-      BlockInputs<T> in;
-      in.q = s.q.block(b);
-      in.v = s.v.block(b);
-      in.tau = s.tau.block(b);
-      in.qacc = s.qacc.block(b);
-      in.inertia = s.inertia.block(b);
-      in.gravity = s.gravity.block(b);
+      BlockInputs<T> in = block_inputs(s, b);
+      in.wrench = nullptr;
       joint_transforms<L>(km, in.q, ws);
       switch (kernel) {
         case Kernel::Fk:

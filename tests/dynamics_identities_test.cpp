@@ -28,46 +28,10 @@ double condition_number(const Eigen::MatrixXd& M) {
   return ev.maxCoeff() / ev.minCoeff();
 }
 
-// q (+) h * direction, on the manifold.
-Eigen::VectorXd displaced(const Model& model, const Eigen::VectorXd& q, const Eigen::VectorXd& direction, double h);
-
-class Identities : public ::testing::TestWithParam<test::ModelCase> {
+class Identities : public test::ModelCaseTest {
  protected:
-  void SetUp() override {
-    model_ = test::load_shared_model(GetParam().name, GetParam().floating_base);
-    dyn_ = std::make_unique<CopyDynamics>(model_, Precision::Double);
-  }
-  Model model_;
-  std::unique_ptr<CopyDynamics> dyn_;
   std::mt19937 rng_{42};
 };
-
-Eigen::VectorXd displaced(const Model& model, const Eigen::VectorXd& q, const Eigen::VectorXd& direction, double h) {
-  // Uses the integrate kernel through a one-copy batch of the scalar lane.
-  Eigen::VectorXd out = q;
-  for (int b = 0; b < model.nbody; ++b) {
-    const int o = model.body_q_offset[b], d = model.body_dof_offset[b];
-    switch (model.body_joint[b]) {
-      case JointType::Revolute:
-      case JointType::Prismatic: out[o] += h * direction[d]; break;
-      case JointType::Spherical:
-      case JointType::Free: {
-        const int r = model.body_joint[b] == JointType::Free ? o + 3 : o;
-        const int w = model.body_joint[b] == JointType::Free ? d + 3 : d;
-        const Eigen::Quaterniond rot(q[r], q[r + 1], q[r + 2], q[r + 3]);
-        if (model.body_joint[b] == JointType::Free)
-          out.segment<3>(o) += rot.toRotationMatrix() * (h * direction.segment<3>(d));
-        const Eigen::Vector3d phi = h * direction.segment<3>(w);
-        const Eigen::Quaterniond turned =
-            rot * Eigen::Quaterniond(Eigen::AngleAxisd(phi.norm(), phi.norm() > 0 ? phi.normalized() : Eigen::Vector3d::UnitX()));
-        out.segment<4>(r) << turned.w(), turned.x(), turned.y(), turned.z();
-        break;
-      }
-      case JointType::Fixed: break;
-    }
-  }
-  return out;
-}
 
 TEST_P(Identities, AbaInvertsRnea) {
   for (int trial = 0; trial < 3; ++trial) {
@@ -123,7 +87,7 @@ TEST_P(Identities, MassMatrixRateMatchesCoriolisPower) {
     const Eigen::VectorXd q = test::random_configuration(model_, rng_);
     const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 2.0);
     const Eigen::MatrixXd Mdot =
-        (dyn_->mass_matrix(displaced(model_, q, v, kStep)) - dyn_->mass_matrix(displaced(model_, q, v, -kStep))) / (2 * kStep);
+        (dyn_->mass_matrix(dyn_->integrate(q, v, kStep)) - dyn_->mass_matrix(dyn_->integrate(q, v, -kStep))) / (2 * kStep);
     const double lhs = 0.5 * v.dot(Mdot * v);
     const double rhs = v.dot(dyn_->coriolis_force(q, v));
     ASSERT_GT(Mdot.norm(), 1e-6);  // the mass matrix does change along v
@@ -165,8 +129,8 @@ TEST_P(Identities, GravityForceIsPotentialGradient) {
   ASSERT_GT(g.norm(), 1e-3);  // not trivially zero
   for (int k = 0; k < model_.nv; ++k) {
     const Eigen::VectorXd e = Eigen::VectorXd::Unit(model_.nv, k);
-    const double dV = (dyn_->potential_energy(displaced(model_, q, e, kStep)) -
-                       dyn_->potential_energy(displaced(model_, q, e, -kStep))) / (2 * kStep);
+    const double dV = (dyn_->potential_energy(dyn_->integrate(q, e, kStep)) -
+                       dyn_->potential_energy(dyn_->integrate(q, e, -kStep))) / (2 * kStep);
     EXPECT_NEAR(g[k], dV, kDifferenceTolerance * (1.0 + g.cwiseAbs().maxCoeff())) << model_.dof_name[k];
   }
 }

@@ -16,14 +16,8 @@ namespace {
 constexpr double kStep = 1e-5;
 constexpr double kDifferenceTolerance = 1e-6;
 
-class Utilities : public ::testing::TestWithParam<test::ModelCase> {
+class Utilities : public test::ModelCaseTest {
  protected:
-  void SetUp() override {
-    model_ = test::load_shared_model(GetParam().name, GetParam().floating_base);
-    dyn_ = std::make_unique<CopyDynamics>(model_, Precision::Double);
-  }
-  Model model_;
-  std::unique_ptr<CopyDynamics> dyn_;
   std::mt19937 rng_{5};
 };
 

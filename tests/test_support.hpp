@@ -1,10 +1,14 @@
 // Shared helpers of the kernel tests: the real robot models, random states.
 #pragma once
 
+#include "batch/copy_dynamics.hpp"
 #include "io/urdf_import.hpp"
 #include "layout/model.hpp"
 
 #include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include <memory>
 
 #include <ostream>
 #include <random>
@@ -94,5 +98,16 @@ inline Eigen::VectorXd random_vector(int n, std::mt19937& rng, double scale = 1.
   for (int k = 0; k < n; ++k) v[k] = scale * unit(rng);
   return v;
 }
+
+// A test over one model case, with the model and its one-copy dynamics in double.
+class ModelCaseTest : public ::testing::TestWithParam<ModelCase> {
+ protected:
+  void SetUp() override {
+    model_ = load_shared_model(GetParam().name, GetParam().floating_base);
+    dyn_ = std::make_unique<CopyDynamics>(model_, Precision::Double);
+  }
+  Model model_;
+  std::unique_ptr<CopyDynamics> dyn_;
+};
 
 }  // namespace lockstep::test
