@@ -52,11 +52,13 @@ message(STATUS "lockstep: instruction set extensions required: ${LOCKSTEP_REQUIR
 # any code built with LOCKSTEP_ARCH_FLAGS and exits with code 3, naming the
 # missing extensions, instead of letting the program die of SIGILL.
 string(REPLACE ";" "," _lockstep_isa_csv "${LOCKSTEP_REQUIRED_ISA}")
+# The flags as one string for the message (a CMake list would split the definition).
+string(JOIN " " _lockstep_arch_text ${LOCKSTEP_ARCH_FLAGS})
 add_library(lockstep_cpu_check OBJECT ${PROJECT_SOURCE_DIR}/tools/cpu_check.cpp)
 target_compile_options(lockstep_cpu_check PRIVATE -march=x86-64 -mtune=generic)
 target_compile_definitions(lockstep_cpu_check PRIVATE
   LOCKSTEP_REQUIRED_ISA="${_lockstep_isa_csv}"
-  LOCKSTEP_ARCH_FLAGS="${LOCKSTEP_ARCH_FLAGS}")
+  LOCKSTEP_ARCH_FLAGS="${_lockstep_arch_text}")
 target_link_libraries(lockstep_cpu_check PRIVATE lockstep_flags)
 target_include_directories(lockstep_cpu_check PUBLIC $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}>)
 add_library(lockstep::lockstep_cpu_check ALIAS lockstep_cpu_check)
