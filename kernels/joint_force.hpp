@@ -19,7 +19,7 @@ void incoming_joint_forces(const KernelModel<lane::scalar_t<L>>& km, const Block
   aba<L>(km, in, ws, scratch_qacc);
   BlockInputs<lane::scalar_t<L>> with_qacc = in;
   with_qacc.qacc = scratch_qacc;
-  rnea<L>(km, with_qacc, ws, scratch_qacc);  // tau_out is not needed: reuse the buffer
+  rnea<L>(km, with_qacc, ws, nullptr);  // only the per-body forces are wanted
   for (int b = 0; b < km.nbody; ++b) {
     const Vec6<L>& f = ws.force[b];
     const Vec3<L> F = spatial::rotate(ws.world[b].R, f.lin());

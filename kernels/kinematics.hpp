@@ -107,7 +107,7 @@ void frame_transforms(const KernelModel<lane::scalar_t<L>>& km, const Workspace<
 
 // Spatial velocity of every body in its own coordinates, v_i = X v_parent + S qd,
 // and the velocity-product acceleration c_i = v_i x (S qd) (RBDA eq. 5.7, with
-// S constant in body coordinates).
+// S constant in body coordinates). v == nullptr means all joints at rest.
 template <class L>
 void body_velocities(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* v, Workspace<L>& ws) {
   constexpr std::size_t W = lane::width_v<L>;
@@ -117,7 +117,8 @@ void body_velocities(const KernelModel<lane::scalar_t<L>>& km, const lane::scala
     const int n = joint_axes(km.body_joint[b], axes);
     Vec6<L> vJ{};
     for (int k = 0; k < 6; ++k) vJ.e[k] = L(0);
-    for (int k = 0; k < n; ++k) vJ.e[axes[k]] = lane::load<L>(v + (km.body_dof_offset[b] + k) * W);
+    if (v)
+      for (int k = 0; k < n; ++k) vJ.e[axes[k]] = lane::load<L>(v + (km.body_dof_offset[b] + k) * W);
     if (parent < 0) {
       ws.velocity[b] = vJ;
       for (int k = 0; k < 6; ++k) ws.bias_accel[b].e[k] = L(0);  // v x vJ = 0 when v = vJ

@@ -9,7 +9,12 @@ namespace lockstep {
 
 // Needs ws.local (joint_transforms) and, with a wrench, ws.world. Leaves in
 // ws.force[i] the spatial force the parent transmits to body i through its
-// joint, in body i coordinates about its origin. tau_out: (nv) per lane.
+// joint, in body i coordinates about its origin. tau_out: (nv) per lane, or
+// nullptr when only those forces are wanted.
+//
+// The forward pass computes the velocities itself rather than calling
+// body_velocities: fused with the accelerations they stay in registers, and
+// RNEA measured 30 % slower (anymal_b, float) with the separate helper.
 template <class L>
 void rnea(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in, Workspace<L>& ws,
           lane::scalar_t<L>* tau_out) {
@@ -48,7 +53,8 @@ void rnea(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scal
   for (int b = km.nbody - 1; b >= 0; --b) {
     int axes[6];
     const int n = joint_axes(km.body_joint[b], axes);
-    for (int k = 0; k < n; ++k) lane::store(ws.force[b].e[axes[k]], tau_out + (km.body_dof_offset[b] + k) * W);
+    if (tau_out)
+      for (int k = 0; k < n; ++k) lane::store(ws.force[b].e[axes[k]], tau_out + (km.body_dof_offset[b] + k) * W);
     const int parent = km.body_parent[b];
     if (parent >= 0) ws.force[parent] = spatial::add(ws.force[parent], spatial::force_to_parent(ws.local[b], ws.force[b]));
   }
