@@ -73,10 +73,6 @@ class OneCopy {
   BatchState<T> state_;
 };
 
-Eigen::MatrixXd square(const Eigen::VectorXd& flat, int n) {
-  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(flat.data(), n, n);
-}
-
 std::vector<Eigen::Isometry3d> poses(const Eigen::VectorXd& flat) {
   std::vector<Eigen::Isometry3d> out(flat.size() / 12);
   for (std::size_t i = 0; i < out.size(); ++i) {
@@ -107,84 +103,90 @@ CopyDynamics::~CopyDynamics() = default;
 CopyDynamics::CopyDynamics(CopyDynamics&&) noexcept = default;
 CopyDynamics& CopyDynamics::operator=(CopyDynamics&&) noexcept = default;
 
-// Sets the copy's inputs (q, then v, tau, qacc and wrench or zero), then
-// runs one BatchDynamics method into `size` values.
-#define LOCKSTEP_ONE_COPY(METHOD, SIZE, Q, V, TAU, QACC, WRENCH)                                       \
-  impl_->visit([&](auto& c) {                                                                          \
-    const int nv = model_->nv;                                                                         \
-    c.set_q(Q);                                                                                        \
-    c.set_v(V);                                                                                        \
-    c.set_tau(TAU);                                                                                    \
-    c.set_qacc(QACC);                                                                                  \
-    c.set_wrench(WRENCH);                                                                              \
-    (void)nv;                                                                                          \
-    return c.run([&](const auto& dyn, const auto& state, auto& out) { dyn.METHOD(state, out); }, SIZE); \
-  })
-
 namespace {
-Eigen::VectorXd zeros(int n) { return Eigen::VectorXd::Zero(n); }
+Eigen::MatrixXd row_major(const Eigen::VectorXd& flat, int rows, int cols) {
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(flat.data(), rows, cols);
+}
 }  // namespace
 
+struct CopyDynamics::Inputs {
+  const Eigen::VectorXd* q = nullptr;
+  const Eigen::VectorXd* v = nullptr;
+  const Eigen::VectorXd* tau = nullptr;
+  const Eigen::VectorXd* qacc = nullptr;
+  const Eigen::MatrixXd* wrench = nullptr;
+};
+
+// Sets the copy's inputs, then runs method(dynamics, state, out) of the
+// batch of either precision into `size` values.
+template <class Method>
+Eigen::VectorXd CopyDynamics::evaluate(const Inputs& in, Method&& method, int size) const {
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model_->nv);
+  return impl_->visit([&](auto& c) {
+    c.set_q(in.q ? *in.q : model_->neutral_configuration());
+    c.set_v(in.v ? *in.v : zero);
+    c.set_tau(in.tau ? *in.tau : zero);
+    c.set_qacc(in.qacc ? *in.qacc : zero);
+    c.set_wrench(in.wrench);
+    return c.run(method, size);
+  });
+}
+
+#define LOCKSTEP_BATCH_METHOD(METHOD) [](const auto& d, const auto& s, auto& o) { d.METHOD(s, o); }
+
 std::vector<Eigen::Isometry3d> CopyDynamics::frame_poses(const Eigen::VectorXd& q) const {
-  const int n = 12 * static_cast<int>(model_->frame_name.size());
-  return poses(LOCKSTEP_ONE_COPY(frame_poses, n, q, zeros(nv), zeros(nv), zeros(nv), nullptr));
+  return poses(evaluate({&q}, LOCKSTEP_BATCH_METHOD(frame_poses), 12 * static_cast<int>(model_->frame_name.size())));
 }
 std::vector<Eigen::Isometry3d> CopyDynamics::body_poses(const Eigen::VectorXd& q) const {
-  return poses(LOCKSTEP_ONE_COPY(body_poses, 12 * model_->nbody, q, zeros(nv), zeros(nv), zeros(nv), nullptr));
+  return poses(evaluate({&q}, LOCKSTEP_BATCH_METHOD(body_poses), 12 * model_->nbody));
 }
 Eigen::MatrixXd CopyDynamics::mass_matrix(const Eigen::VectorXd& q) const {
   const int n = model_->nv;
-  return square(LOCKSTEP_ONE_COPY(mass_matrix, n * n, q, zeros(nv), zeros(nv), zeros(nv), nullptr), n);
+  return row_major(evaluate({&q}, LOCKSTEP_BATCH_METHOD(mass_matrix), n * n), n, n);
 }
 Eigen::MatrixXd CopyDynamics::inverse_mass_matrix(const Eigen::VectorXd& q) const {
   const int n = model_->nv;
-  return square(LOCKSTEP_ONE_COPY(inverse_mass_matrix, n * n, q, zeros(nv), zeros(nv), zeros(nv), nullptr), n);
+  return row_major(evaluate({&q}, LOCKSTEP_BATCH_METHOD(inverse_mass_matrix), n * n), n, n);
 }
 Eigen::VectorXd CopyDynamics::bias_force(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const {
-  return LOCKSTEP_ONE_COPY(bias_force, nv, q, v, zeros(nv), zeros(nv), nullptr);
+  return evaluate({&q, &v}, LOCKSTEP_BATCH_METHOD(bias_force), model_->nv);
 }
 Eigen::VectorXd CopyDynamics::coriolis_force(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const {
-  return LOCKSTEP_ONE_COPY(coriolis_force, nv, q, v, zeros(nv), zeros(nv), nullptr);
+  return evaluate({&q, &v}, LOCKSTEP_BATCH_METHOD(coriolis_force), model_->nv);
 }
 Eigen::VectorXd CopyDynamics::gravity_force(const Eigen::VectorXd& q) const {
-  return LOCKSTEP_ONE_COPY(gravity_force, nv, q, zeros(nv), zeros(nv), zeros(nv), nullptr);
+  return evaluate({&q}, LOCKSTEP_BATCH_METHOD(gravity_force), model_->nv);
 }
 Eigen::VectorXd CopyDynamics::external_force(const Eigen::VectorXd& q, const Eigen::MatrixXd& link_wrench) const {
-  return LOCKSTEP_ONE_COPY(external_force, nv, q, zeros(nv), zeros(nv), zeros(nv), &link_wrench);
+  return evaluate({&q, nullptr, nullptr, nullptr, &link_wrench}, LOCKSTEP_BATCH_METHOD(external_force), model_->nv);
 }
 Eigen::VectorXd CopyDynamics::inverse_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
                                                const Eigen::VectorXd& a, const Eigen::MatrixXd* link_wrench) const {
-  return LOCKSTEP_ONE_COPY(inverse_dynamics, nv, q, v, zeros(nv), a, link_wrench);
+  return evaluate({&q, &v, nullptr, &a, link_wrench}, LOCKSTEP_BATCH_METHOD(inverse_dynamics), model_->nv);
 }
 Eigen::VectorXd CopyDynamics::forward_dynamics(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
                                                const Eigen::VectorXd& tau, const Eigen::MatrixXd* link_wrench) const {
-  return LOCKSTEP_ONE_COPY(forward_dynamics, nv, q, v, tau, zeros(nv), link_wrench);
+  return evaluate({&q, &v, &tau, nullptr, link_wrench}, LOCKSTEP_BATCH_METHOD(forward_dynamics), model_->nv);
 }
 double CopyDynamics::kinetic_energy(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const {
-  return LOCKSTEP_ONE_COPY(kinetic_energy, 1, q, v, zeros(nv), zeros(nv), nullptr)[0];
+  return evaluate({&q, &v}, LOCKSTEP_BATCH_METHOD(kinetic_energy), 1)[0];
 }
 double CopyDynamics::potential_energy(const Eigen::VectorXd& q) const {
-  return LOCKSTEP_ONE_COPY(potential_energy, 1, q, zeros(nv), zeros(nv), zeros(nv), nullptr)[0];
+  return evaluate({&q}, LOCKSTEP_BATCH_METHOD(potential_energy), 1)[0];
 }
-
 Eigen::MatrixXd CopyDynamics::com_jacobian(const Eigen::VectorXd& q) const {
-  const int rows = 6 * model_->nbody, n = model_->nv;
-  const Eigen::VectorXd flat = LOCKSTEP_ONE_COPY(com_jacobian, rows * n, q, zeros(nv), zeros(nv), zeros(nv), nullptr);
-  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(flat.data(), rows, n);
+  const int rows = 6 * model_->nbody;
+  return row_major(evaluate({&q}, LOCKSTEP_BATCH_METHOD(com_jacobian), rows * model_->nv), rows, model_->nv);
 }
 Eigen::MatrixXd CopyDynamics::point_jacobian(const Eigen::VectorXd& q, int frame, const Eigen::Vector3d& offset) const {
-  const int n = model_->nv;
-  const Eigen::VectorXd flat = impl_->visit([&](auto& c) {
-    c.set_q(q);
-    return c.run([&](const auto& dyn, const auto& state, auto& out) { dyn.point_jacobian(state, frame, offset, out); }, 6 * n);
-  });
-  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(flat.data(), 6, n);
+  const auto method = [&](const auto& d, const auto& s, auto& o) { d.point_jacobian(s, frame, offset, o); };
+  return row_major(evaluate({&q}, method, 6 * model_->nv), 6, model_->nv);
 }
 Eigen::MatrixXd CopyDynamics::incoming_joint_forces(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
                                                     const Eigen::VectorXd& tau, const Eigen::MatrixXd* link_wrench) const {
   const Eigen::VectorXd flat =
-      LOCKSTEP_ONE_COPY(incoming_joint_forces, 6 * model_->nbody, q, v, tau, zeros(nv), link_wrench);
-  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>>(flat.data(), model_->nbody, 6);
+      evaluate({&q, &v, &tau, nullptr, link_wrench}, LOCKSTEP_BATCH_METHOD(incoming_joint_forces), 6 * model_->nbody);
+  return row_major(flat, model_->nbody, 6);
 }
 Eigen::VectorXd CopyDynamics::integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const {
   return impl_->visit([&](auto& c) { return c.integrate(q, v, dt); });
@@ -193,6 +195,6 @@ Eigen::VectorXd CopyDynamics::difference(const Eigen::VectorXd& q0, const Eigen:
   return impl_->visit([&](auto& c) { return c.difference(q0, q1); });
 }
 
-#undef LOCKSTEP_ONE_COPY
+#undef LOCKSTEP_BATCH_METHOD
 
 }  // namespace lockstep

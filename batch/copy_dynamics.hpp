@@ -60,6 +60,9 @@ class CopyDynamics {
 
  private:
   struct Impl;
+  struct Inputs;  // the inputs of one call; those not given are zero
+  template <class Method>
+  Eigen::VectorXd evaluate(const Inputs& in, Method&& method, int size) const;
   const Model* model_;
   Precision precision_;
   std::unique_ptr<Impl> impl_;
