@@ -117,13 +117,7 @@ TEST(IncomingJointForce, RootJointCarriesTheWeight) {
 // (x, then y, then z) through two massless links, then a "tip" on a revolute.
 LinkSpec link(const std::string& name, const std::string& parent, JointType type, const Eigen::Vector3d& axis,
               double mass, const Eigen::Vector3d& origin = Eigen::Vector3d::Zero()) {
-  LinkSpec l;
-  l.name = name;
-  l.parent = parent;
-  l.joint.name = parent.empty() ? "" : name + "_joint";
-  l.joint.type = type;
-  l.joint.axis = axis;
-  l.joint.origin.translation() = origin;
+  LinkSpec l = test::joint_link(name, parent, type, axis, origin);
   l.inertial.mass = mass;
   l.inertial.origin.translation() = Eigen::Vector3d(0.05, 0.1, -0.2);
   l.inertial.inertia = mass * Eigen::Vector3d(0.03, 0.04, 0.05).asDiagonal();

@@ -1,4 +1,5 @@
 #include "layout/model_builder.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,18 +11,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// Expects `statement` to throw a ModelError whose message contains each of the given pieces.
-#define EXPECT_MODEL_ERROR(statement, ...)                                         \
-  do {                                                                             \
-    try {                                                                          \
-      statement;                                                                   \
-      ADD_FAILURE() << "no ModelError from " #statement;                           \
-    } catch (const ModelError& e) {                                                \
-      for (const char* piece : {__VA_ARGS__})                                      \
-        EXPECT_NE(std::string(e.what()).find(piece), std::string::npos)            \
-            << "message '" << e.what() << "' lacks '" << piece << "'";             \
-    }                                                                              \
-  } while (0)
 
 InertialSpec box_inertial(double mass, double x, double y, double z) {
   InertialSpec in;
@@ -33,13 +22,7 @@ InertialSpec box_inertial(double mass, double x, double y, double z) {
 
 LinkSpec make_link(const std::string& name, const std::string& parent, JointType type,
                    const Eigen::Vector3d& axis = Eigen::Vector3d::UnitZ(), double mass = 1.0) {
-  LinkSpec l;
-  l.name = name;
-  l.parent = parent;
-  l.joint.name = parent.empty() ? "" : name + "_joint";
-  l.joint.type = type;
-  l.joint.axis = axis;
-  l.joint.origin.translation() = Eigen::Vector3d(0.0, 0.0, 0.5);
+  LinkSpec l = test::joint_link(name, parent, type, axis, Eigen::Vector3d(0.0, 0.0, 0.5));
   l.inertial = box_inertial(mass, 0.1, 0.2, 0.3);
   return l;
 }

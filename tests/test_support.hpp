@@ -3,7 +3,7 @@
 
 #include "batch/copy_dynamics.hpp"
 #include "io/urdf_import.hpp"
-#include "layout/model.hpp"
+#include "layout/model_builder.hpp"
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -19,7 +19,35 @@
 #define LOCKSTEP_SHARED_MODELS_DIR "../shared/models"
 #endif
 
+// Expects `statement` to throw a ModelError whose message contains each of the given pieces.
+#define EXPECT_MODEL_ERROR(statement, ...)                                         \
+  do {                                                                             \
+    try {                                                                          \
+      statement;                                                                   \
+      ADD_FAILURE() << "no ModelError from " #statement;                           \
+    } catch (const ::lockstep::ModelError& e) {                                    \
+      for (const char* piece : {__VA_ARGS__})                                      \
+        EXPECT_NE(std::string(e.what()).find(piece), std::string::npos)            \
+            << "message '" << e.what() << "' lacks '" << piece << "'";             \
+    }                                                                              \
+  } while (0)
+
 namespace lockstep::test {
+
+// A link on a joint named <name>_joint (no joint for a root), its joint frame
+// at `origin` in the parent link; the inertial is the caller's to fill in.
+inline LinkSpec joint_link(const std::string& name, const std::string& parent, JointType type,
+                           const Eigen::Vector3d& axis, const Eigen::Vector3d& origin) {
+  LinkSpec l;
+  l.name = name;
+  l.parent = parent;
+  l.joint.name = parent.empty() ? "" : name + "_joint";
+  l.joint.type = type;
+  l.joint.axis = axis;
+  l.joint.origin.translation() = origin;
+  return l;
+}
+
 
 inline const std::vector<std::string>& shared_model_names() {
   static const std::vector<std::string> names = {"ur5",          "panda",          "double_pendulum", "anymal_b",

@@ -1,4 +1,5 @@
 #include "io/urdf_import.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <tinyxml2.h>
@@ -20,17 +21,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-#define EXPECT_MODEL_ERROR(statement, ...)                                         \
-  do {                                                                             \
-    try {                                                                          \
-      statement;                                                                   \
-      ADD_FAILURE() << "no ModelError from " #statement;                           \
-    } catch (const ModelError& e) {                                                \
-      for (const char* piece : {__VA_ARGS__})                                      \
-        EXPECT_NE(std::string(e.what()).find(piece), std::string::npos)            \
-            << "message '" << e.what() << "' lacks '" << piece << "'";             \
-    }                                                                              \
-  } while (0)
 
 const char* kInertial = R"(<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>)";
 
