@@ -7,15 +7,13 @@
 // frame [force; torque about the body's COM]); matrices nv x nv.
 #pragma once
 
+#include "batch/precision.hpp"
 #include "layout/model.hpp"
 
 #include <memory>
 #include <vector>
 
 namespace lockstep {
-
-enum class Precision { Float, Double };
-const char* precision_name(Precision precision);
 
 class CopyDynamics {
  public:

@@ -1,6 +1,9 @@
 // Articulated-body forward dynamics over one block (RBDA Table 7.1), with the
 // joint armature added to D = S^T IA S:
 //   qacc = (M + diag(armature))^-1 (tau - bias + sum_i J_i^T F_i).
+// A joint-terms policy may replace tau and add an implicit diagonal w to D
+// per DOF (the simulation step's implicit drives, damping and springs):
+//   qacc = (M + diag(armature + w))^-1 (tau - bias + sum_i J_i^T F_i).
 #pragma once
 
 #include "kernels/body_terms.hpp"
@@ -33,31 +36,47 @@ inline void spd_inverse(int n, const L* D, L* Dinv) {
   }
 }
 
+// The plain joint-terms policy: tau from the inputs (zero when absent), no
+// implicit diagonal. A policy's apply(dof, D, tau) is given the DOF's
+// D = S^T IA S + armature (its articulated inertia, before w) and returns w
+// to add to it, setting tau.
+template <class L>
+struct InputTorques {
+  const lane::scalar_t<L>* tau;
+  L apply(int dof, const L& /*D*/, L& tau_out) const {
+    using T = lane::scalar_t<L>;
+    tau_out = tau ? lane::load<L>(tau + dof * lane::width_v<L>) : L(T(0));
+    return L(T(0));
+  }
+};
+
 // Pass 2 for body b with an N-DOF joint (N a compile-time constant so the
 // small loops unroll): U = IA S, D = S^T U + armature, u = tau - S^T pA, and
 // the articulated inertia and bias handed to the parent.
-template <int N, class L>
-inline void aba_backward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, const int* axes,
-                               const BlockInputs<lane::scalar_t<L>>& in, Workspace<L>& ws) {
+template <int N, class L, class JointTerms>
+inline void aba_backward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, const int* axes, JointTerms& terms,
+                               Workspace<L>& ws) {
   using T = lane::scalar_t<L>;
-  constexpr std::size_t W = lane::width_v<L>;
   const int dof0 = km.body_dof_offset[b];
   const Inertia6<L>& IA = ws.inertia[b];
   const Vec6<L>& pA = ws.force[b];
   L* U = &ws.joint_U[6 * dof0];  // column k at U + 6k
-  for (int k = 0; k < N; ++k) {
+  for (int k = 0; k < N; ++k)
     for (int r = 0; r < 6; ++r) U[6 * k + r] = spatial::at(IA, r, axes[k]);
-    const L tau_k = in.tau ? lane::load<L>(in.tau + (dof0 + k) * W) : L(T(0));
+  L D[N * N];
+  for (int k = 0; k < N; ++k)
+    for (int l = 0; l < N; ++l) D[k * N + l] = U[6 * l + axes[k]];
+  for (int k = 0; k < N; ++k) {
+    L& Dkk = D[k * N + k];
+    Dkk = Dkk + L(km.dof_armature[dof0 + k]);
+    L tau_k;
+    Dkk = Dkk + terms.apply(dof0 + k, Dkk, tau_k);
     ws.joint_u[dof0 + k] = tau_k - pA.e[axes[k]];
   }
   L* Dinv = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
   if constexpr (N == 1) {
-    Dinv[0] = L(T(1)) / (U[axes[0]] + L(km.dof_armature[dof0]));
+    Dinv[0] = L(T(1)) / D[0];
   } else {
-    L D[N * N];
-    for (int k = 0; k < N; ++k)
-      for (int l = 0; l < N; ++l) D[k * N + l] = U[6 * l + axes[k]];
-    for (int k = 0; k < N; ++k) D[k * N + k] = D[k * N + k] + L(km.dof_armature[dof0 + k]);
     spd_inverse(N, D, Dinv);
   }
   const int parent = km.body_parent[b];
@@ -109,10 +128,10 @@ inline void aba_forward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, c
 }
 
 // Needs ws.local (joint_transforms) and, with a wrench, ws.world.
-// qacc_out: (nv) per lane.
-template <class L>
-void aba(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in, Workspace<L>& ws,
-         lane::scalar_t<L>* qacc_out) {
+// qacc_out: (nv) per lane. in.tau is ignored: the policy gives the torques.
+template <class L, class JointTerms>
+void aba_with(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in, JointTerms& terms,
+              Workspace<L>& ws, lane::scalar_t<L>* qacc_out) {
   // pass 1: velocities, velocity-product accelerations, rigid inertias and bias forces
   body_velocities<L>(km, in.v, ws);
   for (int b = 0; b < km.nbody; ++b) {
@@ -127,9 +146,9 @@ void aba(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scala
   for (int b = km.nbody - 1; b >= 0; --b) {
     int axes[6];
     switch (joint_axes(km.body_joint[b], axes)) {
-      case 1: aba_backward_joint<1>(km, b, axes, in, ws); break;
-      case 3: aba_backward_joint<3>(km, b, axes, in, ws); break;
-      case 6: aba_backward_joint<6>(km, b, axes, in, ws); break;
+      case 1: aba_backward_joint<1>(km, b, axes, terms, ws); break;
+      case 3: aba_backward_joint<3>(km, b, axes, terms, ws); break;
+      case 6: aba_backward_joint<6>(km, b, axes, terms, ws); break;
     }
   }
   // pass 3 (roots to leaves): accelerations
@@ -142,6 +161,14 @@ void aba(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scala
       case 6: aba_forward_joint<6>(km, b, axes, a0, ws, qacc_out); break;
     }
   }
+}
+
+// ABA with the joint forces in.tau.
+template <class L>
+void aba(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in, Workspace<L>& ws,
+         lane::scalar_t<L>* qacc_out) {
+  InputTorques<L> terms{in.tau};
+  aba_with<L>(km, in, terms, ws, qacc_out);
 }
 
 }  // namespace lockstep

@@ -133,6 +133,15 @@ inline bool all(const mask_t<L>& m) {
   if constexpr (is_scalar_v<L>) return m;
   else return xsimd::all(m);
 }
+template <class L>
+inline bool any(const mask_t<L>& m) {
+  if constexpr (is_scalar_v<L>) return m;
+  else return xsimd::any(m);
+}
+template <class L>
+inline L clamp(const L& x, const L& lo, const L& hi) {
+  return min(max(x, lo), hi);
+}
 
 // sin and cos of x together, to about 1 ulp for |x| < 1e4 (joint angles;
 // larger arguments lose accuracy in the Cody-Waite reduction). Cephes'

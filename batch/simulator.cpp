@@ -1,0 +1,413 @@
+#include "batch/simulator.hpp"
+
+#include "batch/copy_dynamics.hpp"
+#include "batch/step_engine.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace lockstep {
+
+template <class T>
+StepBatch<T>::StepBatch(const Model& model, int copies, int width, int rows)
+    : state(model, copies, width), target_q(copies, model.nq, width), target_v(copies, model.nv, width),
+      drive_stiffness(copies, model.nv, width), drive_damping(copies, model.nv, width), impulse(copies, rows, width),
+      initial_q(copies, model.nq, width), initial_v(copies, model.nv, width), fault(copies, 1, width) {
+  target_q.set_all(model.neutral_configuration());
+  initial_q.set_all(model.neutral_configuration());
+}
+
+template <class T>
+std::size_t StepBatch<T>::bytes_per_copy() const {
+  std::size_t values = 0;
+  for (const BatchArray<T>* a : {&state.q, &state.v, &state.tau, &state.qacc, &state.wrench, &state.inertia,
+                                 &state.gravity, &target_q, &target_v, &drive_stiffness, &drive_damping, &impulse,
+                                 &initial_q, &initial_v, &fault, &applied_drive, &applied_passive, &applied_friction,
+                                 &applied_limits})
+    values += static_cast<std::size_t>(a->size());
+  return values * sizeof(T);
+}
+
+template struct StepBatch<float>;
+template struct StepBatch<double>;
+
+namespace {
+
+void require(bool ok, const std::string& message) {
+  if (!ok) throw std::invalid_argument(message);
+}
+
+void validate(const Model& model, int copies, const StepOptions& o, const std::vector<DofSettings>& dofs) {
+  require(copies >= 1, "Simulator: copies must be at least 1, got " + std::to_string(copies));
+  require(std::isfinite(o.dt) && o.dt > 0, "StepOptions::dt must be positive and finite, got " + std::to_string(o.dt));
+  require(o.substeps >= 1, "StepOptions::substeps must be at least 1, got " + std::to_string(o.substeps));
+  require(o.iterations >= 1, "StepOptions::iterations must be at least 1, got " + std::to_string(o.iterations));
+  require(o.error_reduction >= 0 && o.error_reduction <= 1,
+          "StepOptions::error_reduction must lie in [0, 1], got " + std::to_string(o.error_reduction));
+  require(o.warm_start >= 0 && o.warm_start <= 1,
+          "StepOptions::warm_start must lie in [0, 1], got " + std::to_string(o.warm_start));
+  require(static_cast<int>(dofs.size()) == model.nv, "Simulator: " + std::to_string(dofs.size()) +
+                                                         " DOF settings for a model with " + std::to_string(model.nv) +
+                                                         " DOFs");
+  for (int k = 0; k < model.nv; ++k) {
+    const DofSettings& d = dofs[k];
+    const std::string where = "DOF " + std::to_string(k) + " (" + model.dof_name[k] + "): ";
+    const JointType type = model.body_joint[model.dof_body[k]];
+    const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
+    auto non_negative = [&](double x, const char* name) {
+      require(std::isfinite(x) && x >= 0, where + name + " must be finite and >= 0, got " + std::to_string(x));
+    };
+    non_negative(d.drive_stiffness, "drive_stiffness");
+    non_negative(d.drive_damping, "drive_damping");
+    non_negative(d.damping, "damping");
+    non_negative(d.spring_stiffness, "spring_stiffness");
+    non_negative(d.friction, "friction");
+    non_negative(d.stiction_extra, "stiction_extra");
+    non_negative(d.stribeck_velocity, "stribeck_velocity");
+    non_negative(d.limit_stiffness, "limit_stiffness");
+    non_negative(d.limit_damping, "limit_damping");
+    require(std::isfinite(d.falloff_velocity) && d.falloff_velocity > 0,
+            where + "falloff_velocity must be positive, got " + std::to_string(d.falloff_velocity));
+    require(d.max_force > 0, where + "max_force must be positive (+inf for none), got " + std::to_string(d.max_force));
+    require(d.velocity_limit > 0,
+            where + "velocity_limit must be positive (+inf for none), got " + std::to_string(d.velocity_limit));
+    require(std::isfinite(d.spring_rest), where + "spring_rest must be finite");
+    require(!(d.lower > d.upper), where + "lower limit " + std::to_string(d.lower) + " above upper " +
+                                      std::to_string(d.upper));
+    require(d.armature == model.dof_armature[k], where + "armature is the model's (" +
+                                                     std::to_string(model.dof_armature[k]) +
+                                                     "); change it in the model");
+    if (type == JointType::Free)
+      require(d.drive_stiffness == 0 && d.drive_damping == 0,
+              where + "a floating base takes no drive (set the gains of its 6 DOFs to 0)");
+    if (!one_dof) {
+      require(d.spring_stiffness == 0, where + "springs act on revolute and prismatic joints only");
+      require(d.limit_stiffness == 0 || (std::isinf(d.lower) && std::isinf(d.upper)),
+              where + "limits act on revolute and prismatic joints only");
+      require(d.friction == 0 || d.friction_model == FrictionModel::Coulomb || type == JointType::Spherical,
+              where + "friction acts on revolute, prismatic and spherical joints only");
+    }
+  }
+}
+
+// Counts DOFs with a property and turns the count into a decision.
+StageDecision decide(Stage stage, StageMode mode, int count, const std::string& what) {
+  StageDecision d{stage, false, ""};
+  const std::string found = count > 0 ? std::to_string(count) + " " + what : "no " + what;
+  switch (mode) {
+    case StageMode::Auto:
+      d.runs = count > 0;
+      d.reason = found;
+      break;
+    case StageMode::On:
+      d.runs = true;
+      d.reason = "forced on (" + found + ")";
+      break;
+    case StageMode::Off:
+      d.runs = false;
+      d.reason = "forced off (" + found + ")";
+      break;
+  }
+  return d;
+}
+
+}  // namespace
+
+Simulator::Simulator(const Model& model, int copies, const StepOptions& options, std::vector<DofSettings> dofs)
+    : model_(&model), options_(options), dofs_(dofs.empty() ? default_dof_settings(model) : std::move(dofs)) {
+  validate(model, copies, options_, dofs_);
+  make_plan();
+  const StepPlan plan = step_plan();
+  if (options_.integrator == Integrator::RK4 && (plan.hard_limits || plan.velocity_limits || plan.coulomb_friction))
+    throw std::invalid_argument(
+        "StepOptions::integrator RK4 integrates scenes without solver rows, and this scene has " + rows_summary() +
+        ": use SemiImplicitEuler or Trapezoid, or force those stages off");
+  const bool simd = options_.lanes == Lanes::Simd;
+  if (options_.precision == Precision::Float) {
+    if (simd) engine_ = std::make_unique<StepEngine<lane::simd<float>>>(model, copies, options_, dofs_, plan);
+    else engine_ = std::make_unique<StepEngine<float>>(model, copies, options_, dofs_, plan);
+  } else {
+    if (simd) engine_ = std::make_unique<StepEngine<lane::simd<double>>>(model, copies, options_, dofs_, plan);
+    else engine_ = std::make_unique<StepEngine<double>>(model, copies, options_, dofs_, plan);
+  }
+}
+
+Simulator::~Simulator() = default;
+Simulator::Simulator(Simulator&&) noexcept = default;
+Simulator& Simulator::operator=(Simulator&&) noexcept = default;
+
+int Simulator::copies() const { return engine_->copies(); }
+int Simulator::row_count() const { return engine_->rows(); }
+std::size_t Simulator::bytes_per_copy() const { return engine_->bytes_per_copy(); }
+
+void Simulator::make_plan() {
+  int drives = 0, damping = 0, springs = 0, soft = 0, stribeck = 0, hard = 0, velocity = 0, coulomb = 0;
+  for (int k = 0; k < model_->nv; ++k) {
+    const DofSettings& d = dofs_[k];
+    const JointType type = model_->body_joint[model_->dof_body[k]];
+    const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
+    const bool limited = one_dof && (std::isfinite(d.lower) || std::isfinite(d.upper));
+    drives += d.drive_stiffness > 0 || d.drive_damping > 0 || per_copy_gains_;
+    damping += d.damping > 0;
+    springs += d.spring_stiffness > 0;
+    soft += limited && d.limit_stiffness > 0;
+    hard += limited && d.limit_stiffness == 0;
+    velocity += std::isfinite(d.velocity_limit);
+    stribeck += d.friction > 0 && d.friction_model == FrictionModel::Stribeck && one_dof;
+    coulomb += d.friction > 0 && d.friction_model == FrictionModel::Coulomb;
+  }
+  auto mode = [&](Stage s) { return options_.stages[static_cast<int>(s)]; };
+  plan_ = {
+      decide(Stage::Drives, mode(Stage::Drives), drives, "DOFs with drive gains"),
+      decide(Stage::Damping, mode(Stage::Damping), damping, "DOFs with damping"),
+      decide(Stage::Springs, mode(Stage::Springs), springs, "DOFs with springs"),
+      decide(Stage::SoftLimits, mode(Stage::SoftLimits), soft, "DOFs with spring-damper limits"),
+      decide(Stage::StribeckFriction, mode(Stage::StribeckFriction), stribeck, "DOFs with Stribeck friction"),
+      decide(Stage::ExternalWrenches, mode(Stage::ExternalWrenches), wrenches_used_ ? 1 : 0,
+             "calls of set_link_wrench"),
+      decide(Stage::HardLimits, mode(Stage::HardLimits), hard, "DOFs with hard position limits"),
+      decide(Stage::VelocityLimits, mode(Stage::VelocityLimits), velocity, "DOFs with velocity limits"),
+      decide(Stage::CoulombFriction, mode(Stage::CoulombFriction), coulomb, "DOFs with Coulomb friction"),
+  };
+}
+
+StepPlan Simulator::step_plan() const {
+  auto runs = [&](Stage s) { return plan_[static_cast<int>(s)].runs; };
+  StepPlan p;
+  p.drives = runs(Stage::Drives);
+  p.damping = runs(Stage::Damping);
+  p.springs = runs(Stage::Springs);
+  p.soft_limits = runs(Stage::SoftLimits);
+  p.stribeck = runs(Stage::StribeckFriction);
+  p.wrenches = runs(Stage::ExternalWrenches);
+  p.hard_limits = runs(Stage::HardLimits);
+  p.velocity_limits = runs(Stage::VelocityLimits);
+  p.coulomb_friction = runs(Stage::CoulombFriction);
+  return p;
+}
+
+std::string Simulator::rows_summary() const {
+  std::string out;
+  for (Stage s : {Stage::HardLimits, Stage::VelocityLimits, Stage::CoulombFriction}) {
+    const StageDecision& d = plan_[static_cast<int>(s)];
+    if (!d.runs) continue;
+    if (!out.empty()) out += ", ";
+    out += std::string(stage_name(s)) + " (" + d.reason + ")";
+  }
+  return out;
+}
+
+std::string Simulator::describe_plan() const {
+  std::ostringstream out;
+  out << "step: dt " << options_.dt << " s, " << options_.substeps << " substep(s), " << integrator_name(options_.integrator)
+      << ", " << solver_name(options_.solver) << " x " << options_.iterations << ", " << precision_name(options_.precision)
+      << (options_.lanes == Lanes::Simd ? " SIMD lanes" : " scalar lanes") << "\n";
+  out << "  kinematics and ABA with gravity: always\n";
+  for (const StageDecision& d : plan_)
+    out << "  " << stage_name(d.stage) << ": " << (d.runs ? "runs" : "skipped") << " (" << d.reason << ")\n";
+  out << "  solver: " << (row_count() > 0 ? "runs on " + std::to_string(row_count()) + " rows per copy" : "skipped (no rows)")
+      << "\n";
+  out << "  fault check: always\n";
+  return out.str();
+}
+
+void Simulator::replan() {
+  make_plan();
+  engine_->set_plan(step_plan());
+}
+
+void Simulator::step(int n) {
+  for (int i = 0; i < n; ++i) {
+    engine_->step(options_.substeps, options_.dt);
+    time_ += options_.dt;
+  }
+}
+
+void Simulator::check_copy(int copy) const {
+  if (copy < 0 || copy >= copies())
+    throw std::out_of_range("copy index " + std::to_string(copy) + " outside [0, " + std::to_string(copies()) + ")");
+}
+
+template <class T>
+StepBatch<T>& Simulator::batch() {
+  return const_cast<StepBatch<T>&>(static_cast<const Simulator*>(this)->batch<T>());
+}
+
+template <class T>
+const StepBatch<T>& Simulator::batch() const {
+  if (auto* e = dynamic_cast<const StepEngine<lane::simd<T>>*>(engine_.get())) return e->batch();
+  if (auto* e = dynamic_cast<const StepEngine<T>*>(engine_.get())) return e->batch();
+  throw std::logic_error(std::string("Simulator::batch<") + (sizeof(T) == 4 ? "float" : "double") +
+                         ">: the simulator runs in " + precision_name(options_.precision));
+}
+
+template StepBatch<float>& Simulator::batch<float>();
+template StepBatch<double>& Simulator::batch<double>();
+template const StepBatch<float>& Simulator::batch<float>() const;
+template const StepBatch<double>& Simulator::batch<double>() const;
+
+// Runs f(batch) on the batch of the chosen precision.
+template <class F>
+decltype(auto) Simulator::visit(F&& f) const {
+  if (options_.precision == Precision::Float) return f(const_cast<Simulator*>(this)->batch<float>());
+  return f(const_cast<Simulator*>(this)->batch<double>());
+}
+
+Eigen::VectorXd Simulator::q(int copy) const {
+  check_copy(copy);
+  return visit([&](auto& b) { return b.state.q.get(copy); });
+}
+
+Eigen::VectorXd Simulator::v(int copy) const {
+  check_copy(copy);
+  return visit([&](auto& b) { return b.state.v.get(copy); });
+}
+
+// q with every quaternion normalised; throws on a zero or non-finite one.
+Eigen::VectorXd Simulator::checked_configuration(const Eigen::VectorXd& q, const char* what) const {
+  require(q.size() == model_->nq, std::string(what) + ": expected " + std::to_string(model_->nq) + " values, got " +
+                                      std::to_string(q.size()));
+  Eigen::VectorXd out = q;
+  for (int i = 0; i < q.size(); ++i)
+    require(std::isfinite(q[i]), std::string(what) + ": entry " + std::to_string(i) + " is not finite");
+  for (int b = 0; b < model_->nbody; ++b) {
+    const JointType type = model_->body_joint[b];
+    if (type != JointType::Free && type != JointType::Spherical) continue;
+    const int at = model_->body_q_offset[b] + (type == JointType::Free ? 3 : 0);
+    const double norm = out.segment<4>(at).norm();
+    require(norm > 1e-9, std::string(what) + ": the quaternion of joint " + model_->joint_name[b] + " is zero");
+    out.segment<4>(at) /= norm;
+  }
+  return out;
+}
+
+void Simulator::check_velocity(const Eigen::VectorXd& v, const char* what) const {
+  require(v.size() == model_->nv, std::string(what) + ": expected " + std::to_string(model_->nv) + " values, got " +
+                                      std::to_string(v.size()));
+}
+
+void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
+  check_copy(copy);
+  const Eigen::VectorXd qn = checked_configuration(q, "set_state q");
+  check_velocity(v, "set_state v");
+  for (int k = 0; k < v.size(); ++k)
+    require(std::isfinite(v[k]), "set_state v: entry " + std::to_string(k) + " is not finite");
+  visit([&](auto& b) {
+    b.state.q.set(copy, qn);
+    b.state.v.set(copy, v);
+    b.initial_q.set(copy, qn);
+    b.initial_v.set(copy, v);
+    b.impulse.set(copy, Eigen::VectorXd::Zero(b.impulse.size()));
+    return 0;
+  });
+}
+
+void Simulator::set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
+  for (int c = 0; c < copies(); ++c) set_state(c, q, v);
+}
+
+void Simulator::set_torque(int copy, const Eigen::VectorXd& tau) {
+  check_copy(copy);
+  check_velocity(tau, "set_torque");
+  visit([&](auto& b) { return b.state.tau.set(copy, tau), 0; });
+}
+
+void Simulator::set_drive_target(int copy, const Eigen::VectorXd& q_target, const Eigen::VectorXd& v_target) {
+  check_copy(copy);
+  require(q_target.size() == model_->nq, "set_drive_target: q_target expects " + std::to_string(model_->nq) +
+                                             " values, got " + std::to_string(q_target.size()));
+  check_velocity(v_target, "set_drive_target v_target");
+  visit([&](auto& b) {
+    b.target_q.set(copy, q_target);
+    b.target_v.set(copy, v_target);
+    return 0;
+  });
+}
+
+void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen::VectorXd& kd) {
+  check_copy(copy);
+  check_velocity(kp, "set_drive_gains kp");
+  check_velocity(kd, "set_drive_gains kd");
+  for (int k = 0; k < model_->nv; ++k) {
+    require(std::isfinite(kp[k]) && kp[k] >= 0 && std::isfinite(kd[k]) && kd[k] >= 0,
+            "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] + ") needs finite gains >= 0");
+    if (model_->body_joint[model_->dof_body[k]] == JointType::Free)
+      require(kp[k] == 0 && kd[k] == 0, "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
+                                            ") belongs to a floating base, which takes no drive");
+  }
+  visit([&](auto& b) {
+    b.drive_stiffness.set(copy, kp);
+    b.drive_damping.set(copy, kd);
+    return 0;
+  });
+  if (!per_copy_gains_ && (kp.any() || kd.any())) {
+    per_copy_gains_ = true;
+    replan();
+  }
+}
+
+void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench) {
+  check_copy(copy);
+  if (body < 0 || body >= model_->nbody)
+    throw std::out_of_range("set_link_wrench: body index " + std::to_string(body) + " outside [0, " +
+                            std::to_string(model_->nbody) + ")");
+  visit([&](auto& b) {
+    for (int k = 0; k < 6; ++k) b.state.wrench.at(copy, 6 * body + k) = static_cast<std::decay_t<decltype(b.state.wrench.at(0, 0))>>(wrench[k]);
+    return 0;
+  });
+  if (!wrenches_used_) {
+    wrenches_used_ = true;
+    replan();
+  }
+}
+
+void Simulator::set_gravity(int copy, const Eigen::Vector3d& gravity) {
+  check_copy(copy);
+  visit([&](auto& b) { return b.state.gravity.set(copy, gravity), 0; });
+}
+
+Fault Simulator::fault(int copy) const {
+  check_copy(copy);
+  return visit([&](auto& b) { return static_cast<Fault>(static_cast<int>(b.fault.at(copy, 0))); });
+}
+
+int Simulator::fault_count() const {
+  int count = 0;
+  for (int c = 0; c < copies(); ++c) count += fault(c) != Fault::None;
+  return count;
+}
+
+void Simulator::clear_fault(int copy) {
+  check_copy(copy);
+  visit([&](auto& b) { return b.fault.at(copy, 0) = 0, 0; });
+}
+
+void Simulator::reset(int copy) {
+  check_copy(copy);
+  visit([&](auto& b) {
+    b.state.q.set(copy, b.initial_q.get(copy));
+    b.state.v.set(copy, b.initial_v.get(copy));
+    b.impulse.set(copy, Eigen::VectorXd::Zero(b.impulse.size()));
+    b.fault.at(copy, 0) = 0;
+    return 0;
+  });
+}
+
+AppliedTorque Simulator::applied_torque(int copy) const {
+  check_copy(copy);
+  if (!options_.record_applied_torque)
+    throw std::logic_error("Simulator::applied_torque needs StepOptions::record_applied_torque");
+  return visit([&](auto& b) {
+    return AppliedTorque{b.applied_drive.get(copy), b.applied_passive.get(copy), b.applied_friction.get(copy),
+                         b.applied_limits.get(copy)};
+  });
+}
+
+double Simulator::energy(int copy) const {
+  const CopyDynamics dynamics(*model_, Precision::Double);
+  const Eigen::VectorXd qc = q(copy), vc = v(copy);
+  return dynamics.kinetic_energy(qc, vc) + dynamics.potential_energy(qc);
+}
+
+}  // namespace lockstep

@@ -1,0 +1,147 @@
+// The simulator: a Model, N copies of its state and inputs, and the step
+// pipeline that advances them all by dt, in parallel over blocks of lanes,
+// bit for bit the same whatever the thread count, batch size or position of
+// a copy in the batch.
+//
+//   lockstep::Simulator sim(model, 4096, options);
+//   sim.set_drive_gains(kp, kd);                 // every copy
+//   sim.set_drive_target(copy, q_target, v_target);
+//   sim.step();
+//
+// Per-copy accessors take and return double Eigen vectors in low-level order
+// (q: nq, v and torques: nv). For throughput, batch<T>() exposes the
+// structure-of-arrays storage directly (T = the chosen precision).
+#pragma once
+
+#include "batch/step_options.hpp"
+#include "layout/batch_state.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace lockstep {
+
+struct StepPlan;
+
+// Everything kept per copy, structure-of-arrays, in precision T. The state
+// and the inputs a user writes between steps, the per-copy parameters, the
+// solver's warm start and the fault flags.
+template <class T>
+struct StepBatch {
+  StepBatch(const Model& model, int copies, int width, int rows);
+
+  int copies() const { return state.copies(); }
+
+  BatchState<T> state;     // q, v, tau (feedforward), wrench, inertia, gravity; qacc = last (v1 - v0) / dt
+  BatchArray<T> target_q;  // (nq) drive target position (quaternions for Spherical joints)
+  BatchArray<T> target_v;  // (nv) drive target velocity
+  BatchArray<T> drive_stiffness;  // (nv) per-copy kp
+  BatchArray<T> drive_damping;    // (nv) per-copy kd
+  BatchArray<T> impulse;   // (rows) the solver's impulses of the last step: its warm start
+  BatchArray<T> initial_q; // (nq) what a reset restores
+  BatchArray<T> initial_v; // (nv)
+  BatchArray<T> fault;     // (1) Fault code, sticky
+  // RaiSim's torque over the last step by source (nv each), when
+  // StepOptions::record_applied_torque: drive (feedforward + PD, with its
+  // implicit part), passive (damping, springs, soft limits, Stribeck
+  // friction, with their implicit parts), Coulomb friction impulse / dt,
+  // limit impulses / dt. Empty otherwise.
+  BatchArray<T> applied_drive, applied_passive, applied_friction, applied_limits;
+
+  std::size_t bytes_per_copy() const;
+};
+
+// RaiSim's "torque over the step", term by term, for one copy.
+struct AppliedTorque {
+  Eigen::VectorXd drive;     // tau_cmd - (w_drive / dt) dv
+  Eigen::VectorXd passive;   // damping, springs, soft limits, Stribeck friction
+  Eigen::VectorXd friction;  // Coulomb friction impulse / dt
+  Eigen::VectorXd limits;    // position and velocity limit impulses / dt
+};
+
+class Simulator {
+ public:
+  // dofs: per-DOF joint effects; empty means default_dof_settings(model).
+  // Throws std::invalid_argument naming the option or DOF that is wrong.
+  Simulator(const Model& model, int copies, const StepOptions& options = {}, std::vector<DofSettings> dofs = {});
+  ~Simulator();
+  Simulator(Simulator&&) noexcept;
+  Simulator& operator=(Simulator&&) noexcept;
+
+  const Model& model() const { return *model_; }
+  const StepOptions& options() const { return options_; }
+  const std::vector<DofSettings>& dof_settings() const { return dofs_; }
+  int copies() const;
+  double time() const { return time_; }
+
+  // Advances every copy by options().dt (n times).
+  void step(int n = 1);
+
+  // The stages the pipeline runs for this scene, each with the reason.
+  const std::vector<StageDecision>& plan() const { return plan_; }
+  std::string describe_plan() const;
+  // The constraint rows per copy (limit, velocity-limit and friction rows).
+  int row_count() const;
+
+  // State of one copy. set_state also makes it the copy's initial state,
+  // the one a reset restores, and clears the copy's warm start.
+  Eigen::VectorXd q(int copy) const;
+  Eigen::VectorXd v(int copy) const;
+  void set_state(int copy, const Eigen::VectorXd& q, const Eigen::VectorXd& v);
+  void set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v);
+
+  // Inputs of one copy; they persist until changed.
+  void set_torque(int copy, const Eigen::VectorXd& tau_ff);                     // (nv) feedforward
+  void set_drive_target(int copy, const Eigen::VectorXd& q_target, const Eigen::VectorXd& v_target);  // (nq), (nv)
+  // (nv) per-copy gains, overriding DofSettings; a copy given gains turns
+  // the drive stage on for the scene.
+  void set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen::VectorXd& kd);
+  // World [force; torque about the body's COM]; the first call turns the
+  // wrench stage on (bulk writers through batch<T>() force it On instead).
+  void set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench);
+  void set_gravity(int copy, const Eigen::Vector3d& gravity);
+
+  // Faults: the reason a copy was flagged (None when healthy).
+  Fault fault(int copy) const;
+  int fault_count() const;
+  void clear_fault(int copy);
+  // Back to the initial state, warm start cleared, fault cleared.
+  void reset(int copy);
+
+  AppliedTorque applied_torque(int copy) const;  // needs record_applied_torque
+  // Mechanical energy (kinetic + gravity potential) of one copy, in double,
+  // with the model's inertial parameters and gravity.
+  double energy(int copy) const;
+
+  // The storage, for bulk reads and writes; T must be the chosen precision.
+  template <class T>
+  StepBatch<T>& batch();
+  template <class T>
+  const StepBatch<T>& batch() const;
+  std::size_t bytes_per_copy() const;
+
+  struct Engine;  // the pipeline for one lane type
+
+ private:
+  void make_plan();
+  void replan();
+  StepPlan step_plan() const;
+  std::string rows_summary() const;
+  void check_copy(int copy) const;
+  void check_velocity(const Eigen::VectorXd& v, const char* what) const;
+  Eigen::VectorXd checked_configuration(const Eigen::VectorXd& q, const char* what) const;
+  template <class F>
+  decltype(auto) visit(F&& f) const;
+
+  const Model* model_;
+  StepOptions options_;
+  std::vector<DofSettings> dofs_;
+  std::vector<StageDecision> plan_;
+  double time_ = 0.0;
+  bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive
+  bool wrenches_used_ = false;   // set_link_wrench was called
+  std::unique_ptr<Engine> engine_;
+};
+
+}  // namespace lockstep

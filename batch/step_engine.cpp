@@ -1,0 +1,315 @@
+#include "batch/step_engine.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+namespace lockstep {
+
+namespace {
+
+// Lanes where any of n fields [field][lane] is not finite.
+template <class L>
+lane::mask_t<L> any_non_finite(const lane::scalar_t<L>* p, int n) {
+  constexpr std::size_t W = lane::width_v<L>;
+  lane::mask_t<L> bad(false);
+  for (int k = 0; k < n; ++k) bad = bad || !lane::is_finite(lane::load<L>(p + k * W));
+  return bad;
+}
+
+template <class L>
+L fault_code(Fault f) {
+  return L(static_cast<lane::scalar_t<L>>(static_cast<int>(f)));
+}
+
+}  // namespace
+
+template <class L>
+StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int rows, int columns)
+    : ws(km), terms(km.nv), rows(rows, columns, km.nv), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
+      displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
+      v_sum(km.nv), a_sum(km.nv) {}
+
+template <class L>
+StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
+                          const std::vector<DofSettings>& dofs, const StepPlan& plan)
+    : options_(options), km_(model), batch_(model, copies, kWidth, 0) {
+  const int nv = model.nv;
+  jm_.acceleration_drive.resize(nv);
+  for (int k = 0; k < nv; ++k) {
+    const DofSettings& d = dofs[k];
+    jm_.acceleration_drive[k] = d.drive_type == DriveType::Acceleration;
+    jm_.max_force.push_back(static_cast<T>(d.max_force));
+    jm_.damping_coefficient.push_back(static_cast<T>(d.damping));
+    jm_.spring_stiffness.push_back(static_cast<T>(d.spring_stiffness));
+    jm_.spring_rest.push_back(static_cast<T>(d.spring_rest));
+    jm_.lower.push_back(static_cast<T>(d.lower));
+    jm_.upper.push_back(static_cast<T>(d.upper));
+    jm_.limit_stiffness.push_back(static_cast<T>(d.limit_stiffness));
+    jm_.limit_damping.push_back(static_cast<T>(d.limit_damping));
+    const bool stribeck = d.friction_model == FrictionModel::Stribeck;
+    jm_.coulomb.push_back(static_cast<T>(stribeck ? d.friction : 0.0));
+    jm_.stiction_extra.push_back(static_cast<T>(d.stiction_extra));
+    jm_.falloff_velocity.push_back(static_cast<T>(d.falloff_velocity));
+    jm_.stribeck_velocity.push_back(static_cast<T>(d.stribeck_velocity));
+  }
+  set_plan(plan);
+
+  // Solver rows, DOF by DOF: position limit, velocity limit, friction.
+  std::vector<int> column_of(nv, -1);
+  auto add_row = [&](JointRowKind kind, int k, double a, double b) {
+    if (column_of[k] < 0) {
+      column_of[k] = static_cast<int>(column_dof_.size());
+      column_dof_.push_back(k);
+    }
+    const int body = model.dof_body[k];
+    const int q_index = model.body_q_offset[body] + (k - model.body_dof_offset[body]);
+    row_specs_.push_back({kind, k, q_index, column_of[k], static_cast<T>(a), static_cast<T>(b)});
+  };
+  for (int k = 0; k < nv; ++k) {
+    const DofSettings& d = dofs[k];
+    const JointType type = model.body_joint[model.dof_body[k]];
+    const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
+    if (plan.hard_limits && one_dof && d.limit_stiffness == 0.0 && (std::isfinite(d.lower) || std::isfinite(d.upper)))
+      add_row(JointRowKind::PositionLimit, k, d.lower, d.upper);
+    if (plan.velocity_limits && std::isfinite(d.velocity_limit)) add_row(JointRowKind::VelocityLimit, k, d.velocity_limit, 0);
+    if (plan.coulomb_friction && d.friction_model == FrictionModel::Coulomb && d.friction > 0.0)
+      add_row(JointRowKind::Friction, k, d.friction, 0);
+  }
+  batch_.impulse = BatchArray<T>(copies, static_cast<int>(row_specs_.size()), kWidth);
+  if (options.record_applied_torque)
+    for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
+      *a = BatchArray<T>(copies, nv, kWidth);
+  Eigen::VectorXd kp(nv), kd(nv);
+  for (int k = 0; k < nv; ++k) kp[k] = dofs[k].drive_stiffness, kd[k] = dofs[k].drive_damping;
+  batch_.drive_stiffness.set_all(kp);
+  batch_.drive_damping.set_all(kd);
+  const int rows = static_cast<int>(row_specs_.size()), columns = static_cast<int>(column_dof_.size());
+  scratch_ = std::make_unique<tbb::enumerable_thread_specific<Scratch>>(
+      [this, rows, columns] { return Scratch(km_, rows, columns); });
+}
+
+template <class L>
+void StepEngine<L>::set_plan(const StepPlan& plan) {
+  plan_.drives = plan.drives, plan_.damping = plan.damping, plan_.springs = plan.springs;
+  plan_.soft_limits = plan.soft_limits, plan_.stribeck = plan.stribeck, plan_.wrenches = plan.wrenches;
+  if (row_specs_.empty() && column_dof_.empty()) {
+    plan_.hard_limits = plan.hard_limits, plan_.velocity_limits = plan.velocity_limits;
+    plan_.coulomb_friction = plan.coulomb_friction;
+  }
+  jm_.drives = plan.drives, jm_.damping = plan.damping, jm_.springs = plan.springs;
+  jm_.soft_limits = plan.soft_limits, jm_.stribeck = plan.stribeck;
+}
+
+template <class L>
+void StepEngine<L>::step(int substeps, double dt) {
+  const T h = static_cast<T>(dt / substeps);
+  tbb::parallel_for(tbb::blocked_range<int>(0, batch_.state.q.blocks()), [&](const tbb::blocked_range<int>& range) {
+    Scratch& s = scratch_->local();
+    for (int b = range.begin(); b != range.end(); ++b)
+      for (int k = 0; k < substeps; ++k) step_block(b, h, s);
+  });
+}
+
+template <class L>
+void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
+                                      JointTermInputs<T> terms_in, Scratch& s) {
+  joint_transforms<L>(km_, q, s.ws);
+  if (plan_.wrenches) world_transforms<L>(km_, s.ws);
+  terms_in.q = q;
+  terms_in.v = v;
+  joint_term_prepass<L>(km_, jm_, h, terms_in, s.terms);
+  BlockInputs<T> at = in;
+  at.q = q;
+  at.v = v;
+  StepJointTerms<L> terms{jm_, s.terms, tau_ff};
+  aba_with<L>(km_, at, terms, s.ws, fields(s.qacc));
+}
+
+template <class L>
+void StepEngine<L>::step_block(int block, T h, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  StepBatch<T>& B = batch_;
+  const int nq = km_.nq, nv = km_.nv;
+  T* q = B.state.q.block(block);
+  T* v = B.state.v.block(block);
+  const T* tau_ff = B.state.tau.block(block);
+
+  // Inputs that are not finite fault their copy (first reason wins).
+  L input_fault(T(0));
+  const std::pair<lane::mask_t<L>, Fault> checks[] = {
+      {any_non_finite<L>(B.state.gravity.block(block), 3), Fault::NonFiniteGravity},
+      {any_non_finite<L>(B.state.wrench.block(block), plan_.wrenches ? 6 * km_.nbody : 0), Fault::NonFiniteWrench},
+      {any_non_finite<L>(B.target_q.block(block), plan_.drives ? nq : 0) ||
+           any_non_finite<L>(B.target_v.block(block), plan_.drives ? nv : 0),
+       Fault::NonFiniteTarget},
+      {any_non_finite<L>(tau_ff, nv), Fault::NonFiniteTorque}};
+  for (const auto& [bad, code] : checks) input_fault = lane::select(bad, fault_code<L>(code), input_fault);
+
+  BlockInputs<T> in;
+  in.inertia = B.state.inertia.block(block);
+  in.gravity = B.state.gravity.block(block);
+  in.wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
+  const JointTermInputs<T> terms_in{q, v, B.target_q.block(block), B.target_v.block(block),
+                                    B.drive_stiffness.block(block), B.drive_damping.block(block)};
+  for (int k = 0; k < nv; ++k) s.u0[k] = lane::load<L>(v + k * W);
+
+  T* q_next = fields(s.q_next);
+  if (options_.integrator == Integrator::RK4) {
+    rk4_block(in, tau_ff, terms_in, q, h, q_next, s);
+  } else {
+    free_acceleration(q, v, h, in, tau_ff, terms_in, s);
+    for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(h), s.qacc[k], s.u0[k]);
+    const bool tgs = options_.solver == SolverType::TGS;
+    if (!row_specs_.empty()) solve_rows(block, q, h, s);
+    else if (tgs)
+      for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
+    // positions: TGS by its substep displacement; otherwise by the
+    // integrator's velocity (semi-implicit Euler v1, trapezoid (v0 + v1)/2)
+    T* velocity = fields(s.qacc);  // free again: reused as the position velocity
+    T step = h;
+    for (int k = 0; k < nv; ++k) {
+      L u = s.u1[k];
+      if (tgs) u = s.displacement[k];
+      else if (options_.integrator == Integrator::Trapezoid) u = L(T(0.5)) * (s.u0[k] + s.u1[k]);
+      lane::store(u, velocity + k * W);
+    }
+    if (tgs) step = T(1);
+    integrate<L>(km_, q, velocity, step, q_next);
+  }
+  if (options_.record_applied_torque) record_applied(block, h, s);
+
+  // Faults: a copy with non-finite inputs or state is flagged; with
+  // reset_on_fault it restarts from its initial state.
+  lane::mask_t<L> bad_state = any_non_finite<L>(q_next, nq);
+  for (int k = 0; k < nv; ++k) bad_state = bad_state || !lane::is_finite(s.u1[k]);
+  const L zero(T(0));
+  const L new_fault = lane::select(input_fault != zero, input_fault,
+                                   lane::select(bad_state, fault_code<L>(Fault::NonFiniteState), zero));
+  T* fault = B.fault.block(block);
+  const L old_fault = lane::load<L>(fault);
+  lane::store(lane::select(old_fault != zero, old_fault, new_fault), fault);
+  T* qacc_out = B.state.qacc.block(block);
+  for (int k = 0; k < nv; ++k) lane::store((s.u1[k] - s.u0[k]) / L(h), qacc_out + k * W);
+  if (options_.reset_on_fault) {
+    const auto restart = new_fault != zero;
+    const T* q_init = B.initial_q.block(block);
+    const T* v_init = B.initial_v.block(block);
+    for (int i = 0; i < nq; ++i)
+      lane::store(lane::select(restart, lane::load<L>(q_init + i * W), lane::load<L>(q_next + i * W)), q + i * W);
+    for (int k = 0; k < nv; ++k) lane::store(lane::select(restart, lane::load<L>(v_init + k * W), s.u1[k]), v + k * W);
+    T* impulse = B.impulse.block(block);
+    for (int r = 0; r < B.impulse.size(); ++r)
+      lane::store(lane::select(restart, zero, lane::load<L>(impulse + r * W)), impulse + r * W);
+  } else {
+    for (int i = 0; i < nq; ++i) lane::store(lane::load<L>(q_next + i * W), q + i * W);
+    for (int k = 0; k < nv; ++k) lane::store(s.u1[k], v + k * W);
+  }
+}
+
+// Classic RK4 on (q, v) with the joint effects evaluated at every stage
+// (RaiSim: steps 1-4 at the state of the stage); positions move on the
+// manifold from q0 by the stage velocities.
+template <class L>
+void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in,
+                              const T* q0, T h, T* q_out, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km_.nv;
+  const T* v0 = terms_in.v;
+  T* qs = fields(s.q_stage);
+  T* vs = fields(s.v_stage);
+  T* vsum = fields(s.v_sum);
+  T* asum = fields(s.a_sum);
+  // stage 1 at (q0, v0)
+  free_acceleration(q0, v0, h, in, tau_ff, terms_in, s);
+  for (int k = 0; k < nv; ++k) {
+    lane::store(s.u0[k], vsum + k * W);
+    lane::store(s.qacc[k], asum + k * W);
+  }
+  const T fractions[3] = {T(0.5) * h, T(0.5) * h, h};
+  const T weights[3] = {T(2), T(2), T(1)};
+  for (int stage = 0; stage < 3; ++stage) {
+    const T c = fractions[stage];
+    // q at the stage from the previous stage's velocity, then v likewise
+    integrate<L>(km_, q0, stage == 0 ? v0 : vs, c, qs);
+    for (int k = 0; k < nv; ++k) lane::store(lane::fmadd(L(c), s.qacc[k], s.u0[k]), vs + k * W);
+    free_acceleration(qs, vs, h, in, tau_ff, terms_in, s);
+    const L w(weights[stage]);
+    for (int k = 0; k < nv; ++k) {
+      lane::store(lane::fmadd(w, lane::load<L>(vs + k * W), lane::load<L>(vsum + k * W)), vsum + k * W);
+      lane::store(lane::fmadd(w, s.qacc[k], lane::load<L>(asum + k * W)), asum + k * W);
+    }
+  }
+  const T sixth = h / T(6);
+  for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(sixth), lane::load<L>(asum + k * W), s.u0[k]);
+  integrate<L>(km_, q0, vsum, sixth, q_out);
+}
+
+template <class L>
+void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km_.nv;
+  JointRowScratch<L>& rs = s.rows;
+  RowBlock<L>& rows = rs.rows;
+  const T erp = static_cast<T>(options_.error_reduction);
+  const bool tgs = options_.solver == SolverType::TGS;
+  build_joint_rows<L>(km_, row_specs_, q, s.u1.data(), h, erp, rs);
+  // Lanes where no row needs an impulse start from zero and keep it
+  // exactly; a block where all lanes are so skips the solver (the same
+  // result, bit for bit, as solving).
+  const lane::mask_t<L> rest = rows_at_rest(rows);
+  T* impulse = batch_.impulse.block(block);
+  const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
+  for (int r = 0; r < rows.m; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
+  if (!lane::all<L>(rest)) {
+    joint_row_delassus<L>(km_, row_specs_, column_dof_, batch_.state.inertia.block(block),
+                          s.terms.implicit_diagonal.data(), s.ws, rs);
+    if (tgs) tgs_solve(rows, options_.iterations, h, erp);
+    else pgs_solve(rows, options_.iterations);
+    for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
+    add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());
+    for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
+    if (tgs) {
+      for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
+      add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
+      for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
+    }
+  } else if (tgs) {
+    for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
+  }
+  for (int r = 0; r < rows.m; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);
+}
+
+// RaiSim's torque over the step by source, with dv = v1 - v0:
+// drive tau_cmd - (w_drive / h) dv, passive f - (w_passive / h) dv, and the
+// solver's impulses / h split into friction and limits.
+template <class L>
+void StepEngine<L>::record_applied(int block, T h, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km_.nv;
+  const L inv_h(T(1) / h);
+  T* drive = batch_.applied_drive.block(block);
+  T* passive = batch_.applied_passive.block(block);
+  T* friction = batch_.applied_friction.block(block);
+  T* limits = batch_.applied_limits.block(block);
+  for (int k = 0; k < nv; ++k) {
+    const L rate = (s.u1[k] - s.u0[k]) * inv_h;
+    lane::store(lane::fnmadd(s.terms.drive_implicit[k], rate, s.terms.command[k]), drive + k * W);
+    lane::store(lane::fnmadd(s.terms.passive_implicit[k], rate, s.terms.passive[k]), passive + k * W);
+    lane::store(L(T(0)), friction + k * W);
+    lane::store(L(T(0)), limits + k * W);
+  }
+  const T* impulse = batch_.impulse.block(block);
+  for (std::size_t r = 0; r < row_specs_.size(); ++r) {
+    const JointRowSpec<T>& spec = row_specs_[r];
+    T* out = (spec.kind == JointRowKind::Friction ? friction : limits) + spec.dof * W;
+    const L torque = s.rows.sigma[r] * lane::load<L>(impulse + r * W) * inv_h;
+    lane::store(lane::load<L>(out) + torque, out);
+  }
+}
+
+template class StepEngine<float>;
+template class StepEngine<double>;
+template class StepEngine<lane::simd<float>>;
+template class StepEngine<lane::simd<double>>;
+
+}  // namespace lockstep

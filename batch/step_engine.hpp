@@ -1,0 +1,87 @@
+// The step pipeline for one lane type L: the per-block stages of a
+// simulation step (see docs/architecture.md, "The step") and the parallel
+// loop over blocks. Simulator owns one Engine<L> for the chosen precision
+// and lanes; this header is internal to batch/.
+#pragma once
+
+#include "batch/simulator.hpp"
+#include "kernels/aba.hpp"
+#include "kernels/joint_rows.hpp"
+#include "kernels/joint_terms.hpp"
+
+#include <tbb/enumerable_thread_specific.h>
+
+namespace lockstep {
+
+// What the pipeline runs, decided once per scene by the Simulator.
+struct StepPlan {
+  bool drives = false, damping = false, springs = false, soft_limits = false, stribeck = false;
+  bool wrenches = false;
+  bool hard_limits = false, velocity_limits = false, coulomb_friction = false;
+};
+
+struct Simulator::Engine {
+  virtual ~Engine() = default;
+  virtual void step(int substeps, double dt) = 0;
+  // The non-row stages may change between steps (drive gains, wrenches).
+  virtual void set_plan(const StepPlan& plan) = 0;
+  virtual int copies() const = 0;
+  virtual int rows() const = 0;
+  virtual std::size_t bytes_per_copy() const = 0;
+};
+
+template <class L>
+class StepEngine final : public Simulator::Engine {
+ public:
+  using T = lane::scalar_t<L>;
+  static constexpr int kWidth = static_cast<int>(lane::width_v<L>);
+
+  StepEngine(const Model& model, int copies, const StepOptions& options, const std::vector<DofSettings>& dofs,
+             const StepPlan& plan);
+
+  void step(int substeps, double dt) override;
+  void set_plan(const StepPlan& plan) override;
+  int copies() const override { return batch_.copies(); }
+  int rows() const override { return static_cast<int>(row_specs_.size()); }
+  std::size_t bytes_per_copy() const override { return batch_.bytes_per_copy(); }
+
+  StepBatch<T>& batch() { return batch_; }
+  const StepBatch<T>& batch() const { return batch_; }
+
+ private:
+  // Scratch of one worker for one block at a time; never per copy.
+  struct Scratch {
+    Workspace<L> ws;
+    JointTermScratch<L> terms;
+    JointRowScratch<L> rows;
+    std::vector<L> u0, u1, u_free, qacc, displacement;  // (nv)
+    // [field][lane] arrays, as lanes for their alignment; read through fields()
+    std::vector<L> q_next;          // (nq) the step's new positions
+    std::vector<L> q_stage, v_stage;  // RK4 stage state
+    std::vector<L> v_sum, a_sum;      // RK4 weighted sums
+    Scratch(const KernelModel<T>& km, int rows, int columns);
+  };
+
+  static T* fields(std::vector<L>& lanes) { return reinterpret_cast<T*>(lanes.data()); }
+  void step_block(int block, T h, Scratch& s);
+  // ABA with the joint effects at (q, v): s.qacc. Needs nothing prepared.
+  void free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
+                         JointTermInputs<T> terms_in, Scratch& s);
+  // RK4 for scenes without rows: v1 in s.u1, q1 written to q_out.
+  void rk4_block(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in, const T* q0, T h,
+                 T* q_out, Scratch& s);
+  // Solver rows: s.u1 from s.u1 (= u*), and the displacement for TGS.
+  void solve_rows(int block, const T* q, T h, Scratch& s);
+  void record_applied(int block, T h, Scratch& s);
+
+  StepOptions options_;
+  StepPlan plan_;
+  KernelModel<T> km_;
+  JointTermModel<T> jm_;
+  std::vector<JointRowSpec<T>> row_specs_;
+  std::vector<int> column_dof_;
+  StepBatch<T> batch_;
+  std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
+};
+
+}  // namespace lockstep

@@ -1,0 +1,59 @@
+#include "batch/step_options.hpp"
+
+namespace lockstep {
+
+const char* solver_name(SolverType solver) { return solver == SolverType::PGS ? "PGS" : "TGS"; }
+
+const char* integrator_name(Integrator integrator) {
+  switch (integrator) {
+    case Integrator::SemiImplicitEuler: return "semi-implicit Euler";
+    case Integrator::Trapezoid: return "trapezoid";
+    case Integrator::RK4: return "RK4";
+  }
+  return "?";
+}
+
+const char* stage_name(Stage stage) {
+  switch (stage) {
+    case Stage::Drives: return "drives";
+    case Stage::Damping: return "damping";
+    case Stage::Springs: return "springs";
+    case Stage::SoftLimits: return "soft limits";
+    case Stage::StribeckFriction: return "Stribeck friction";
+    case Stage::ExternalWrenches: return "external wrenches";
+    case Stage::HardLimits: return "hard limits";
+    case Stage::VelocityLimits: return "velocity limits";
+    case Stage::CoulombFriction: return "Coulomb friction";
+    case Stage::Count: break;
+  }
+  return "?";
+}
+
+const char* fault_name(Fault fault) {
+  switch (fault) {
+    case Fault::None: return "none";
+    case Fault::NonFiniteTorque: return "non-finite torque";
+    case Fault::NonFiniteTarget: return "non-finite drive target";
+    case Fault::NonFiniteWrench: return "non-finite wrench";
+    case Fault::NonFiniteGravity: return "non-finite gravity";
+    case Fault::NonFiniteState: return "non-finite state";
+  }
+  return "?";
+}
+
+std::vector<DofSettings> default_dof_settings(const Model& model) {
+  std::vector<DofSettings> dofs(model.nv);
+  for (int k = 0; k < model.nv; ++k) {
+    DofSettings& d = dofs[k];
+    d.max_force = model.dof_effort_limit[k];
+    d.damping = model.dof_damping[k];
+    d.friction = model.dof_friction[k];
+    d.armature = model.dof_armature[k];
+    d.lower = model.dof_lower[k];
+    d.upper = model.dof_upper[k];
+    d.velocity_limit = model.dof_velocity_limit[k];
+  }
+  return dofs;
+}
+
+}  // namespace lockstep

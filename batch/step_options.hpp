@@ -1,0 +1,125 @@
+// What a simulation step does: the time step and its knobs (StepOptions), the
+// per-DOF joint effects (DofSettings: drive, damping, spring, friction,
+// limits), and the stages of the pipeline that a scene switches on.
+#pragma once
+
+#include "batch/precision.hpp"
+#include "layout/model.hpp"
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace lockstep {
+
+enum class SolverType { PGS, TGS };
+enum class Integrator { SemiImplicitEuler, Trapezoid, RK4 };
+// Scalar runs the reference path, one copy per block; Simd one copy per lane.
+enum class Lanes { Simd, Scalar };
+
+const char* solver_name(SolverType solver);
+const char* integrator_name(Integrator integrator);
+
+// PhysX's drive types: a Force drive outputs stiffness * error + damping *
+// velocity error as a force; an Acceleration drive outputs it as a joint
+// acceleration (gains in 1/s^2 and 1/s), i.e. scaled by the joint's
+// articulated inertia, so the response does not depend on the links' masses.
+enum class DriveType { Force, Acceleration };
+
+// Coulomb: a solver row that stops the joint if the friction force can
+// (PhysX, RaiSim). Stribeck: a smooth explicit force (the articulated-actors
+// reference): peak static force coulomb + stiction_extra reached linearly at
+// falloff_velocity, falling to coulomb with a Gaussian of width
+// stribeck_velocity.
+enum class FrictionModel { Coulomb, Stribeck };
+
+// Per-DOF joint effects. default_dof_settings(model) fills them from the
+// model (URDF effort, velocity, limits, damping, friction); everything else
+// defaults to off. A Free joint's DOFs take no drive, spring or limit.
+struct DofSettings {
+  // drive: tau = clamp(tau_ff + kp (q_target - q) + kd (v_target - v), -max_force, max_force)
+  double drive_stiffness = 0.0;  // kp [N m/rad or N/m; 1/s^2 for Acceleration]
+  double drive_damping = 0.0;    // kd [N m s/rad or N s/m; 1/s for Acceleration]
+  DriveType drive_type = DriveType::Force;
+  double max_force = Model::kInfinity;  // the effort limit; clamps feedforward + PD together
+  // passive, never clamped
+  double damping = 0.0;           // viscous [N m s/rad], implicit
+  double spring_stiffness = 0.0;  // [N m/rad], implicit
+  double spring_rest = 0.0;       // rest position [rad or m]
+  double armature = 0.0;          // read-only here: the model's rotor inertia
+  // friction
+  double friction = 0.0;  // Coulomb force [N m or N]
+  FrictionModel friction_model = FrictionModel::Coulomb;
+  double stiction_extra = 0.0;       // Stribeck only [N m]
+  double falloff_velocity = 1e-3;    // Stribeck only [rad/s]
+  double stribeck_velocity = 0.0;    // Stribeck only [rad/s]; 0: no Stribeck fall-off
+  // limits: hard (a one-sided solver row) when limit_stiffness is 0, else a
+  // spring-damper acting beyond the range, integrated implicitly
+  double lower = -Model::kInfinity;
+  double upper = Model::kInfinity;
+  double limit_stiffness = 0.0;
+  double limit_damping = 0.0;
+  double velocity_limit = Model::kInfinity;  // |v| bound, a solver row
+};
+
+std::vector<DofSettings> default_dof_settings(const Model& model);
+
+// The pipeline's stages; each runs when the scene needs it (Auto) or when
+// forced On; Off skips it even if the scene has the feature.
+enum class Stage : int {
+  Drives,          // PD drives (explicit command + implicit diagonal)
+  Damping,         // joint damping, implicit
+  Springs,         // joint springs, implicit
+  SoftLimits,      // spring-damper limits, implicit
+  StribeckFriction,// smooth friction force, explicit
+  ExternalWrenches,// link wrenches through J^T
+  HardLimits,      // solver rows: one-sided position limits
+  VelocityLimits,  // solver rows: |v| bounds
+  CoulombFriction, // solver rows: boxed friction impulses
+  Count
+};
+inline constexpr int kStageCount = static_cast<int>(Stage::Count);
+enum class StageMode { Auto, On, Off };
+const char* stage_name(Stage stage);
+
+struct StepOptions {
+  double dt = 0.002;   // seconds per step()
+  int substeps = 1;    // pipeline runs per step(), each of dt / substeps
+  SolverType solver = SolverType::PGS;
+  int iterations = 16;  // PGS sweeps, or TGS position iterations (each a solver substep)
+  Integrator integrator = Integrator::SemiImplicitEuler;
+  Precision precision = Precision::Float;
+  Lanes lanes = Lanes::Simd;
+  // Share of a limit violation removed per step (Baumgarte); rows that are
+  // not violated are speculative: they let the joint reach the limit exactly.
+  double error_reduction = 0.2;
+  double warm_start = 1.0;  // factor on last step's impulses as the solver's start
+  bool reset_on_fault = false;  // put a faulted copy back to its initial state
+  bool record_applied_torque = false;  // keep RaiSim's per-source torque of the last step
+  std::array<StageMode, kStageCount> stages{};  // all Auto
+
+  StepOptions& force(Stage stage, StageMode mode) {
+    stages[static_cast<int>(stage)] = mode;
+    return *this;
+  }
+};
+
+// Whether a stage runs in a scene, and why.
+struct StageDecision {
+  Stage stage;
+  bool runs = false;
+  std::string reason;
+};
+
+// Reason a copy was flagged. Sticky until the copy is reset or cleared.
+enum class Fault : unsigned char {
+  None = 0,
+  NonFiniteTorque,  // feedforward joint torque
+  NonFiniteTarget,  // drive target position or velocity
+  NonFiniteWrench,  // external link wrench
+  NonFiniteGravity,
+  NonFiniteState,   // q or v after the step
+};
+const char* fault_name(Fault fault);
+
+}  // namespace lockstep

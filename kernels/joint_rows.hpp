@@ -1,0 +1,128 @@
+// Joint-space solver rows: hard position limits, velocity limits and Coulomb
+// joint friction. Each acts on one DOF k with the Jacobian J = sigma e_k,
+// sigma = +-1 per lane (which limit is nearer, which way the joint moves),
+// so D = J Mt^-1 J^T is read off the columns Mt^-1 e_k, computed once per
+// distinct DOF from the tree-sparse factorisation of Mt = M + diag(w).
+#pragma once
+
+#include "kernels/crba.hpp"
+#include "kernels/row_solver.hpp"
+
+namespace lockstep {
+
+enum class JointRowKind : unsigned char {
+  PositionLimit,  // sigma v >= -e/dt (speculative) with lambda >= 0; e: distance to the nearer limit
+  VelocityLimit,  // sigma v <= v_max with lambda <= 0; sigma the sign of v_free
+  Friction,       // v = 0 with |lambda| <= friction dt
+};
+
+// One row's topology and parameters, shared by every copy.
+template <class T>
+struct JointRowSpec {
+  JointRowKind kind;
+  int dof;
+  int q_index;  // the DOF's entry in q (1-DOF joints only carry limits)
+  int column;  // index of the DOF among the distinct row DOFs
+  T a = 0, b = 0;  // PositionLimit: lower, upper; VelocityLimit: v_max; Friction: friction force
+};
+
+// Per block: the rows, each row's sign, and the columns Mt^-1 e_k.
+template <class L>
+struct JointRowScratch {
+  RowBlock<L> rows;
+  std::vector<L> sigma;    // (m)
+  std::vector<L> columns;  // (ncolumn x nv)
+  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), columns(ncolumn * nv) {
+    for (int r = 0; r < m; ++r) rows.positional[r] = 0;
+  }
+};
+
+// Rows' signs, targets, bounds and free velocities from q and the free
+// velocity u* of one block; dt is the (sub)step.
+template <class L>
+void build_joint_rows(const KernelModel<lane::scalar_t<L>>& km, const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
+                      const lane::scalar_t<L>* q, const L* v_free, lane::scalar_t<L> dt, lane::scalar_t<L> erp,
+                      JointRowScratch<L>& s) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const T inf = std::numeric_limits<T>::infinity();
+  const L one(T(1)), zero(T(0)), step(dt);
+  RowBlock<L>& rows = s.rows;
+  for (int r = 0; r < rows.m; ++r) {
+    const JointRowSpec<T>& spec = specs[r];
+    const L u = v_free[spec.dof];
+    switch (spec.kind) {
+      case JointRowKind::PositionLimit: {
+        const L qk = lane::load<L>(q + spec.q_index * W);
+        const L to_lower = qk - L(spec.a), to_upper = L(spec.b) - qk;
+        const auto lower_nearer = to_lower < to_upper;
+        s.sigma[r] = lane::select(lower_nearer, one, -one);
+        rows.error[r] = lane::select(lower_nearer, to_lower, to_upper);
+        rows.target[r] = positional_target(rows.error[r], step, step, L(erp));
+        rows.lo[r] = zero;
+        rows.hi[r] = L(inf);
+        rows.positional[r] = 1;
+        break;
+      }
+      case JointRowKind::VelocityLimit:
+        s.sigma[r] = lane::select(u < zero, -one, one);
+        rows.error[r] = zero;
+        rows.target[r] = L(spec.a);
+        rows.lo[r] = L(-inf);
+        rows.hi[r] = zero;
+        break;
+      case JointRowKind::Friction:
+        s.sigma[r] = one;
+        rows.error[r] = zero;
+        rows.target[r] = zero;
+        rows.hi[r] = L(spec.a * dt);
+        rows.lo[r] = -rows.hi[r];
+        break;
+    }
+    rows.v_free[r] = s.sigma[r] * u;
+  }
+}
+
+// The Delassus matrix of the rows: Mt = CRBA + armature + w factored as
+// L^T D L, one solve per distinct row DOF. Needs ws.local; overwrites
+// ws.inertia and ws.matrix.
+template <class L>
+void joint_row_delassus(const KernelModel<lane::scalar_t<L>>& km,
+                        const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const std::vector<int>& column_dof,
+                        const lane::scalar_t<L>* inertia, const L* implicit_diagonal, Workspace<L>& ws,
+                        JointRowScratch<L>& s) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  T* H = reinterpret_cast<T*>(ws.matrix.data());
+  crba<L>(km, inertia, ws, H);
+  for (int k = 0; k < nv; ++k) {
+    T* Hkk = H + (k * nv + k) * W;
+    lane::store(lane::load<L>(Hkk) + implicit_diagonal[k], Hkk);
+  }
+  ltdl_factor<L>(km, H);
+  for (std::size_t c = 0; c < column_dof.size(); ++c) {
+    T* column = reinterpret_cast<T*>(&s.columns[c * nv]);
+    for (int r = 0; r < nv; ++r) lane::store(L(T(r == column_dof[c] ? 1 : 0)), column + r * W);
+    ltdl_solve<L>(km, H, column);
+  }
+  const int m = s.rows.m;
+  for (int r = 0; r < m; ++r)
+    for (int c = 0; c < m; ++c)
+      s.rows.D[r * m + c] = s.sigma[r] * s.sigma[c] * s.columns[specs[c].column * nv + specs[r].dof];
+}
+
+// out[k] = base[k] + sum_r sigma_r x_r (Mt^-1 e_{dof_r})[k]: the velocity
+// change of impulses x (lambda), or the displacement of lambda_sum.
+template <class L>
+void add_row_impulses(const KernelModel<lane::scalar_t<L>>& km, const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
+                      const JointRowScratch<L>& s, const std::vector<L>& x, L* out) {
+  const int nv = km.nv;
+  for (int r = 0; r < s.rows.m; ++r) {
+    const L scaled = s.sigma[r] * x[r];
+    const L* column = &s.columns[specs[r].column * nv];
+    for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(scaled, column[k], out[k]);
+  }
+}
+
+}  // namespace lockstep

@@ -1,0 +1,179 @@
+// The joint effects of one simulation step over a block: PD drives, joint
+// damping, springs, spring-damper limits and smooth (Stribeck) friction.
+//
+// Every stiff term is integrated implicitly (backward Euler): it is
+// evaluated at the end of the step, q1 = q0 + dt v1, v1 = v0 + dv, so for a
+// force k (q_ref - q) + c (v_ref - v) the step sees
+//   explicit part  k (q_ref - q0 - dt v0) + c (v_ref - v0),
+//   implicit part  -(dt c + dt^2 k) dv / dt,
+// and dt c + dt^2 k joins the joint's articulated inertia inside ABA
+// (RaiSim, "Joint torque of a simulation step", step 4; the diagonal w):
+//   (M + diag(w)) dv = dt (tau_explicit - h).
+// An Acceleration drive scales both parts by the joint's articulated inertia
+// D = S^T IA S + armature, known only inside ABA; so does the effort clamp,
+// which bounds feedforward + explicit PD together (RaiSim step 1). Passive
+// terms are added after the clamp and never clipped.
+#pragma once
+
+#include "kernels/configuration.hpp"
+
+namespace lockstep {
+
+// Per-DOF parameters of the joint effects, shared by every copy, in the
+// working precision; which terms run is decided per scene (the stages).
+template <class T>
+struct JointTermModel {
+  bool drives = false, damping = false, springs = false, soft_limits = false, stribeck = false;
+  std::vector<unsigned char> acceleration_drive;  // (nv) 1: gains in 1/s^2, 1/s
+  std::vector<T> max_force;                       // (nv) effort limit, +inf when none
+  std::vector<T> damping_coefficient;             // (nv)
+  std::vector<T> spring_stiffness, spring_rest;   // (nv)
+  std::vector<T> lower, upper;                    // (nv) limits, used by soft limits
+  std::vector<T> limit_stiffness, limit_damping;  // (nv) 0 on hard-limited DOFs
+  std::vector<T> coulomb, stiction_extra, falloff_velocity, stribeck_velocity;  // (nv) Stribeck model
+};
+
+// Per-block results of joint_term_prepass, read by the ABA policy below.
+template <class L>
+struct JointTermScratch {
+  std::vector<L> pd, pd_implicit;            // (nv) explicit PD force and its w (per unit D for Acceleration drives)
+  std::vector<L> passive, passive_implicit;  // (nv) explicit passive force and its w
+  std::vector<L> command;                    // (nv) clamped feedforward + PD of the step
+  std::vector<L> drive_implicit;             // (nv) w of the drive, after scaling
+  std::vector<L> implicit_diagonal;          // (nv) the whole w added to D
+  explicit JointTermScratch(int nv)
+      : pd(nv), pd_implicit(nv), passive(nv), passive_implicit(nv), command(nv), drive_implicit(nv),
+        implicit_diagonal(nv) {}
+};
+
+// Per-lane inputs of the joint effects for one block ([field][lane]).
+template <class T>
+struct JointTermInputs {
+  const T* q = nullptr;         // (nq)
+  const T* v = nullptr;         // (nv)
+  const T* target_q = nullptr;  // (nq)
+  const T* target_v = nullptr;  // (nv)
+  const T* stiffness = nullptr; // (nv) kp
+  const T* damping = nullptr;   // (nv) kd
+};
+
+// The smooth dry friction of the articulated-actors reference, opposing v:
+// below the fall-off velocity a linear ramp to the peak static force
+// coulomb + stiction_extra; above it the Gaussian Stribeck fall-off to coulomb.
+template <class L>
+inline L stribeck_friction(const L& v, const L& coulomb, const L& extra, const L& falloff, const L& stribeck_v) {
+  using T = lane::scalar_t<L>;
+  const L speed = lane::abs(v);
+  const L peak = coulomb + extra;
+  const L ramp = peak * speed / falloff;
+  const L x = (speed - falloff) / lane::max(stribeck_v, L(T(1e-30)));
+  // exp(-x^2) by its value at x^2 clamped to [0, 80] (exp(-80) ~ 2e-35 is zero here).
+  const L x2 = lane::min(x * x, L(T(80)));
+  L decay;
+  if constexpr (lane::is_scalar_v<L>) decay = std::exp(-x2);
+  else decay = xsimd::exp(-x2);
+  const L sliding = lane::fmadd(extra, lane::select(stribeck_v > L(T(0)), decay, L(T(0))), coulomb);
+  const L magnitude = lane::select(speed < falloff, ramp, sliding);
+  return lane::select(v > L(T(0)), -magnitude, lane::select(v < L(T(0)), magnitude, L(T(0))));
+}
+
+// Fills the scratch's explicit forces and implicit weights for one block.
+template <class L>
+void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTermModel<lane::scalar_t<L>>& jm,
+                        lane::scalar_t<L> dt, const JointTermInputs<lane::scalar_t<L>>& in,
+                        JointTermScratch<L>& s) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const L zero(T(0));
+  const L h(dt), h2(dt * dt);
+  for (int k = 0; k < km.nv; ++k) {
+    s.pd[k] = zero;
+    s.pd_implicit[k] = zero;
+    s.passive[k] = zero;
+    s.passive_implicit[k] = zero;
+  }
+  for (int b = 0; b < km.nbody; ++b) {
+    const JointType type = km.body_joint[b];
+    const int qo = km.body_q_offset[b], k0 = km.body_dof_offset[b];
+    if (type == JointType::Free) continue;  // the root takes no drive, spring or limit
+    const int n = joint_nv(type);
+    // position error to the drive target, per DOF
+    L error[3];
+    if (type == JointType::Spherical) {
+      // RaiSim: the rotation vector of q^-1 q_target, in the joint's child frame
+      const Quaternion<L> a = load_quaternion<L>(in.q + qo * W);
+      const Quaternion<L> c = load_quaternion<L>(in.target_q + qo * W);
+      const Vec3<L> e = quaternion_log(quaternion_multiply(Quaternion<L>{a.w, -a.x, -a.y, -a.z}, c));
+      error[0] = e.x, error[1] = e.y, error[2] = e.z;
+    } else {
+      error[0] = lane::load<L>(in.target_q + qo * W) - lane::load<L>(in.q + qo * W);
+    }
+    for (int i = 0; i < n; ++i) {
+      const int k = k0 + i;
+      const L v = lane::load<L>(in.v + k * W);
+      if (jm.drives) {
+        const L kp = lane::load<L>(in.stiffness + k * W), kd = lane::load<L>(in.damping + k * W);
+        const L predicted_error = lane::fnmadd(h, v, error[i]);  // q_ref - (q0 + dt v0)
+        s.pd[k] = lane::fmadd(kp, predicted_error, kd * (lane::load<L>(in.target_v + k * W) - v));
+        s.pd_implicit[k] = lane::fmadd(h2, kp, h * kd);
+      }
+      if (jm.damping) {
+        const L c(jm.damping_coefficient[k]);
+        s.passive[k] = lane::fnmadd(c, v, s.passive[k]);
+        s.passive_implicit[k] = lane::fmadd(h, c, s.passive_implicit[k]);
+      }
+      if (type == JointType::Spherical) continue;  // springs, soft limits and Stribeck: 1-DOF joints
+      const L q = lane::load<L>(in.q + qo * W);
+      const L q_end = lane::fmadd(h, v, q);  // q0 + dt v0
+      if (jm.springs) {
+        const L ks(jm.spring_stiffness[k]);
+        s.passive[k] = lane::fmadd(ks, L(jm.spring_rest[k]) - q_end, s.passive[k]);
+        s.passive_implicit[k] = lane::fmadd(h2, ks, s.passive_implicit[k]);
+      }
+      if (jm.soft_limits) {
+        // beyond a limit (at the predicted end of the step): a spring-damper
+        // pushing back, k (limit - q) - c v, implicit like the drives
+        const L kl(jm.limit_stiffness[k]), cl(jm.limit_damping[k]);
+        const L below = L(jm.lower[k]) - q_end, above = L(jm.upper[k]) - q_end;
+        const auto under = below > L(T(0)), over = above < L(T(0));
+        const L push = lane::select(under, below, lane::select(over, above, zero));
+        const auto active = under || over;
+        s.passive[k] = s.passive[k] + lane::select(active, lane::fnmadd(cl, v, kl * push), zero);
+        s.passive_implicit[k] = s.passive_implicit[k] + lane::select(active, lane::fmadd(h2, kl, h * cl), zero);
+      }
+      if (jm.stribeck)
+        s.passive[k] = s.passive[k] + stribeck_friction(v, L(jm.coulomb[k]), L(jm.stiction_extra[k]),
+                                                        L(jm.falloff_velocity[k]), L(jm.stribeck_velocity[k]));
+    }
+  }
+}
+
+// The ABA joint-terms policy of the step (see aba_with): the clamped
+// command plus the passive force as the joint force, the implicit weights
+// as w. Records the command and the weights for the solver and the report.
+template <class L>
+struct StepJointTerms {
+  using T = lane::scalar_t<L>;
+  const JointTermModel<T>& jm;
+  JointTermScratch<L>& s;
+  const T* tau_ff;  // (nv) per lane
+
+  L apply(int dof, const L& D, L& tau) const {
+    constexpr std::size_t W = lane::width_v<L>;
+    L pd = s.pd[dof], w_drive = s.pd_implicit[dof];
+    if (jm.acceleration_drive[dof]) {
+      pd = pd * D;
+      w_drive = w_drive * D;
+    }
+    const L bound(jm.max_force[dof]);
+    const L command = lane::clamp(lane::load<L>(tau_ff + dof * W) + pd, -bound, bound);
+    s.command[dof] = command;
+    s.drive_implicit[dof] = w_drive;
+    tau = command + s.passive[dof];
+    const L w = w_drive + s.passive_implicit[dof];
+    s.implicit_diagonal[dof] = w;
+    return w;
+  }
+};
+
+}  // namespace lockstep

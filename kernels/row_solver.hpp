@@ -1,0 +1,118 @@
+// The velocity-level constraint solver over one block: rows r with impulses
+// lambda_r in [lo_r, hi_r], coupled through the Delassus matrix
+// D = J Mt^-1 J^T (Mt: the mass matrix plus the implicit diagonal), solve
+//   v = v_free + D lambda,   each row: v_r >= target_r where lambda_r > lo_r,
+//                                      v_r <= target_r where lambda_r < hi_r,
+// (a projected linear complementarity problem) by projected Gauss-Seidel or
+// by TGS (PhysX's temporal Gauss-Seidel: the step split into substeps, the
+// position error of positional rows advanced between them).
+//
+// The solver knows rows only through D, v_free, target and the bounds: joint
+// limits, velocity limits and joint friction are its first row types;
+// contacts, loops and mimic couplings add rows without changing it. A row
+// whose bounds follow another row's impulse (friction under a normal force:
+// |lambda_r| <= mu_r lambda_bound) names that row in bound_row.
+#pragma once
+
+#include "kernels/lane.hpp"
+
+#include <limits>
+#include <vector>
+
+namespace lockstep {
+
+// The rows of one block, [row][lane] through the lane type L.
+template <class L>
+struct RowBlock {
+  int m = 0;
+  std::vector<int> bound_row;  // (m) -1, or the row whose impulse bounds this one (times mu)
+  std::vector<L> mu;           // (m) friction coefficient of bound rows
+  std::vector<unsigned char> positional;  // (m) 1: target follows a position error (TGS re-evaluates it)
+  std::vector<L> D;            // (m x m) Delassus matrix
+  std::vector<L> v_free;       // (m) row velocity before the solve
+  std::vector<L> target, lo, hi;
+  std::vector<L> error;        // (m) position error of positional rows (>= 0: separated)
+  std::vector<L> lambda;       // (m) impulses: warm start in, solution out
+  std::vector<L> lambda_sum;   // (m) TGS: sum over substeps of h lambda (the position-level impulse)
+  std::vector<L> displacement; // (m) TGS: row displacement accumulated over substeps
+
+  explicit RowBlock(int rows)
+      : m(rows), bound_row(rows, -1), mu(rows), positional(rows, 0), D(rows * rows), v_free(rows), target(rows),
+        lo(rows), hi(rows), error(rows), lambda(rows), lambda_sum(rows), displacement(rows) {}
+};
+
+// The target of a positional row with error e over a time h: speculative
+// when separated (the row may close the gap exactly, never cross it), a
+// share `erp` of the violation per step when violated.
+template <class L>
+inline L positional_target(const L& e, const L& h, const L& step, const L& erp) {
+  using T = lane::scalar_t<L>;
+  return lane::select(e >= L(T(0)), -e / h, -erp * e / step);
+}
+
+// Per lane: true where every row is satisfied with all impulses zero, so
+// zero is the exact solution there.
+template <class L>
+inline lane::mask_t<L> rows_at_rest(const RowBlock<L>& rows) {
+  using T = lane::scalar_t<L>;
+  lane::mask_t<L> rest(true);
+  for (int r = 0; r < rows.m; ++r) {
+    const L lo = rows.bound_row[r] >= 0 ? L(T(0)) : rows.lo[r];
+    const L hi = rows.bound_row[r] >= 0 ? L(T(0)) : rows.hi[r];
+    const L push = lane::clamp(rows.target[r] - rows.v_free[r], lo, hi);
+    rest = rest && (push == L(T(0)));
+    if (rows.positional[r]) rest = rest && (rows.error[r] >= L(T(0)));
+  }
+  return rest;
+}
+
+// One Gauss-Seidel sweep over the rows; v_r recomputed from the impulses.
+template <class L>
+inline void gauss_seidel_sweep(RowBlock<L>& rows) {
+  const int m = rows.m;
+  for (int r = 0; r < m; ++r) {
+    const L* Dr = &rows.D[r * m];
+    L v = rows.v_free[r];
+    for (int c = 0; c < m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
+    L lo = rows.lo[r], hi = rows.hi[r];
+    if (rows.bound_row[r] >= 0) {
+      hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
+      lo = -hi;
+    }
+    rows.lambda[r] = lane::clamp(rows.lambda[r] + (rows.target[r] - v) / Dr[r], lo, hi);
+  }
+}
+
+template <class L>
+void pgs_solve(RowBlock<L>& rows, int iterations) {
+  for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(rows);
+}
+
+// TGS over `substeps` substeps of h = dt / substeps: before each sweep the
+// positional rows' targets follow their error advanced by the displacement
+// so far; after it every row's displacement grows by h v_r and lambda_sum
+// by h lambda_r (the integrator moves positions by dt v_free + J^T-mapped
+// lambda_sum, see apply in constraint_rows.hpp).
+template <class L>
+void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
+  using T = lane::scalar_t<L>;
+  const int m = rows.m;
+  const L h(dt / T(substeps)), step(dt), e_rate(erp);
+  for (int r = 0; r < m; ++r) {
+    rows.displacement[r] = L(T(0));
+    rows.lambda_sum[r] = L(T(0));
+  }
+  for (int k = 0; k < substeps; ++k) {
+    for (int r = 0; r < m; ++r)
+      if (rows.positional[r]) rows.target[r] = positional_target(rows.error[r] + rows.displacement[r], h, step, e_rate);
+    gauss_seidel_sweep(rows);
+    for (int r = 0; r < m; ++r) {
+      L v = rows.v_free[r];
+      for (int c = 0; c < m; ++c) v = lane::fmadd(rows.D[r * m + c], rows.lambda[c], v);
+      rows.displacement[r] = lane::fmadd(h, v, rows.displacement[r]);
+      rows.lambda_sum[r] = lane::fmadd(h, rows.lambda[r], rows.lambda_sum[r]);
+    }
+  }
+}
+
+}  // namespace lockstep

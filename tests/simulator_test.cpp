@@ -1,0 +1,228 @@
+// The simulation step's physics on small models with known answers, the
+// per-source applied torque against the equation of motion, the stage plan,
+// and the errors for bad options.
+#include "tests/sim_support.hpp"
+
+#include <cmath>
+
+namespace lockstep {
+namespace {
+
+using test::free_box;
+using test::spinner;
+
+StepOptions double_options(double dt) {
+  StepOptions o;
+  o.dt = dt;
+  o.precision = Precision::Double;
+  return o;
+}
+
+// Semi-implicit Euler from rest under gravity g: v_n = -g n dt and
+// z_n = -g dt^2 n (n + 1) / 2, exactly up to rounding.
+TEST(Simulator, FreeFallFollowsSemiImplicitEuler) {
+  const Model model = free_box(Eigen::Vector3d(0.1, 0.2, 0.3), 2.0);
+  for (Precision precision : {Precision::Float, Precision::Double}) {
+    StepOptions o = double_options(0.01);
+    o.precision = precision;
+    Simulator sim(model, 3, o);
+    const int n = 100;
+    sim.step(n);
+    const double tol = precision == Precision::Float ? 1e-4 : 1e-12;  // float: 100 sums of 0.0981, ~ 100 * 6e-8 relative
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(sim.v(c)[2], -9.81 * n * 0.01, tol * 10) << precision_name(precision);
+      EXPECT_NEAR(sim.q(c)[2], -9.81 * 0.01 * 0.01 * n * (n + 1) / 2.0, tol * 10) << precision_name(precision);
+      EXPECT_EQ(sim.fault(c), Fault::None);
+    }
+  }
+}
+
+// An implicit PD drive on a 1-DOF spinner settles on its target, and its
+// steady state is the target exactly (no gravity torque on the axis).
+TEST(Simulator, ImplicitDriveSettlesOnTarget) {
+  const double inertia = 0.01, kp = 100.0;
+  const Model model = spinner(inertia);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  dofs[0].drive_stiffness = kp;
+  dofs[0].drive_damping = 2.0 * std::sqrt(kp * (inertia + 0.0));
+  Simulator sim(model, 1, double_options(0.01), dofs);
+  sim.set_drive_target(0, Eigen::VectorXd::Constant(1, 0.5), Eigen::VectorXd::Zero(1));
+  sim.step(200);  // 2 s, 20 time constants sqrt(I / kp)
+  EXPECT_NEAR(sim.q(0)[0], 0.5, 1e-6);
+  EXPECT_NEAR(sim.v(0)[0], 0.0, 1e-5);
+}
+
+// The drive's effort limit clamps feedforward + PD: a drive far from its
+// target accelerates the spinner by max_force / I in the first step (the
+// implicit part acts on top, so measure with kd = 0 and kp small).
+TEST(Simulator, EffortLimitClampsTheCommand) {
+  const double inertia = 0.5;
+  const Model model = spinner(inertia);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  dofs[0].drive_stiffness = 1e-3;
+  dofs[0].max_force = 2.0;
+  StepOptions o = double_options(0.001);
+  o.record_applied_torque = true;
+  Simulator sim(model, 1, o, dofs);
+  sim.set_drive_target(0, Eigen::VectorXd::Constant(1, 1e6), Eigen::VectorXd::Zero(1));
+  sim.step();
+  // dv = dt * max_force / (I + dt^2 kp)
+  EXPECT_NEAR(sim.v(0)[0], 0.001 * 2.0 / (inertia + 1e-9), 1e-12);
+  EXPECT_NEAR(sim.applied_torque(0).drive[0], 2.0, 1e-8);
+}
+
+// Coulomb friction stronger than the applied torque holds the joint still;
+// weaker, it takes away exactly its bound.
+TEST(Simulator, CoulombFrictionHoldsOrSlows) {
+  const double inertia = 0.2, dt = 0.01;
+  const Model model = spinner(inertia);
+  for (double friction : {2.0, 0.5}) {
+    std::vector<DofSettings> dofs = default_dof_settings(model);
+    dofs[0].friction = friction;
+    StepOptions o = double_options(dt);
+    o.record_applied_torque = true;
+    Simulator sim(model, 1, o, dofs);
+    sim.set_torque(0, Eigen::VectorXd::Constant(1, 1.0));
+    sim.step(10);
+    const double expected_v = friction > 1.0 ? 0.0 : 10 * dt * (1.0 - friction) / inertia;
+    EXPECT_NEAR(sim.v(0)[0], expected_v, 1e-12) << "friction " << friction;
+    EXPECT_NEAR(sim.applied_torque(0).friction[0], friction > 1.0 ? -1.0 : -friction, 1e-9);
+  }
+}
+
+// A joint driven at speed into its hard limit stops on it within the step of
+// impact (speculative row) and does not bounce back.
+TEST(Simulator, HardLimitStopsAtImpactWithoutBounce) {
+  const Model model = spinner(0.1, -1.0, 0.3);
+  for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
+    StepOptions o = double_options(0.01);
+    o.solver = solver;
+    Simulator sim(model, 1, o);
+    sim.set_state(0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, 10.0));
+    sim.set_torque(0, Eigen::VectorXd::Constant(1, 5.0));
+    for (int i = 0; i < 50; ++i) {
+      sim.step();
+      EXPECT_LE(sim.q(0)[0], 0.3 + 1e-9) << solver_name(solver) << " step " << i;
+      if (sim.q(0)[0] > 0.3 - 1e-9) {
+        EXPECT_GE(sim.v(0)[0], -1e-9) << "bounce at step " << i;
+      }
+    }
+    EXPECT_NEAR(sim.q(0)[0], 0.3, 1e-6);
+  }
+}
+
+// A velocity limit bounds |v| under a large torque.
+TEST(Simulator, VelocityLimitBoundsSpeed) {
+  const Model model = spinner(0.1);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  dofs[0].velocity_limit = 2.0;
+  Simulator sim(model, 1, double_options(0.01), dofs);
+  sim.set_torque(0, Eigen::VectorXd::Constant(1, -50.0));
+  sim.step(20);
+  EXPECT_NEAR(sim.v(0)[0], -2.0, 1e-9);
+}
+
+// A spring-damper limit lets the joint in past the limit and pushes back:
+// at rest against a constant torque tau the overshoot is tau / k.
+TEST(Simulator, SoftLimitSettlesAtForceBalance) {
+  const Model model = spinner(0.1, -1.0, 0.3);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  dofs[0].limit_stiffness = 1000.0;
+  dofs[0].limit_damping = 20.0;
+  Simulator sim(model, 1, double_options(0.002), dofs);
+  sim.set_torque(0, Eigen::VectorXd::Constant(1, 5.0));
+  sim.step(2000);
+  EXPECT_NEAR(sim.q(0)[0], 0.3 + 5.0 / 1000.0, 1e-6);
+}
+
+// RaiSim's torque over the step, summed over its sources, is the equation of
+// motion of the step: M(q0) (v1 - v0) / dt + h(q0, v0) = drive + passive +
+// friction + limits. Checked on anymal_b with drives, damping, springs,
+// friction and limits all active, in double.
+TEST(Simulator, AppliedTorqueBalancesTheEquationOfMotion) {
+  const Model model = test::load_shared_model("anymal_b", false);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (int k = 0; k < model.nv; ++k) {
+    dofs[k].drive_stiffness = 50.0;
+    dofs[k].drive_damping = 2.0;
+    dofs[k].damping = 0.3;
+    dofs[k].spring_stiffness = 5.0;
+    dofs[k].spring_rest = 0.1;
+    dofs[k].friction = 0.4;
+    dofs[k].lower = -0.2;  // joints start at 0 moving fast: limits engage
+    dofs[k].upper = 0.2;
+  }
+  StepOptions o = double_options(0.005);
+  o.record_applied_torque = true;
+  Simulator sim(model, 1, o, dofs);
+  std::mt19937 rng(3);
+  const Eigen::VectorXd q0 = Eigen::VectorXd::Zero(model.nq);
+  const Eigen::VectorXd v0 = test::random_vector(model.nv, rng, 40.0);
+  sim.set_state(0, q0, v0);
+  sim.set_drive_target(0, Eigen::VectorXd::Constant(model.nq, 0.3), Eigen::VectorXd::Zero(model.nv));
+  sim.step();
+  const CopyDynamics dyn(model, Precision::Double);
+  const Eigen::VectorXd lhs = dyn.mass_matrix(q0) * (sim.v(0) - v0) / o.dt + dyn.bias_force(q0, v0);
+  const AppliedTorque t = sim.applied_torque(0);
+  EXPECT_GT(t.limits.cwiseAbs().maxCoeff(), 1.0);  // the limits did act
+  EXPECT_GT(t.friction.cwiseAbs().maxCoeff(), 0.1);
+  const Eigen::VectorXd rhs = t.drive + t.passive + t.friction + t.limits;
+  EXPECT_LT((lhs - rhs).cwiseAbs().maxCoeff(), 1e-8 * (1.0 + rhs.cwiseAbs().maxCoeff())) << "lhs " << lhs.transpose()
+                                                                                          << "\nrhs " << rhs.transpose();
+}
+
+TEST(Simulator, PlanSaysWhichStagesRunAndWhy) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  Simulator sim(model, 4);
+  const auto& plan = sim.plan();
+  ASSERT_EQ(plan.size(), static_cast<std::size_t>(kStageCount));
+  EXPECT_FALSE(plan[static_cast<int>(Stage::Drives)].runs);
+  EXPECT_TRUE(plan[static_cast<int>(Stage::HardLimits)].runs);
+  EXPECT_EQ(plan[static_cast<int>(Stage::HardLimits)].reason, "12 DOFs with hard position limits");
+  EXPECT_EQ(sim.row_count(), 24);  // 12 position + 12 velocity limit rows
+  EXPECT_NE(sim.describe_plan().find("drives: skipped (no DOFs with drive gains)"), std::string::npos)
+      << sim.describe_plan();
+  StepOptions off;
+  off.force(Stage::HardLimits, StageMode::Off).force(Stage::VelocityLimits, StageMode::Off);
+  Simulator bare(model, 4, off);
+  EXPECT_EQ(bare.row_count(), 0);
+  EXPECT_NE(bare.describe_plan().find("hard limits: skipped (forced off (12 DOFs"), std::string::npos);
+}
+
+TEST(Simulator, BadOptionsAreRejectedByName) {
+  const Model model = spinner(0.1, -1.0, 1.0);
+  auto expect_error = [&](const StepOptions& o, std::vector<DofSettings> dofs, const std::string& piece) {
+    try {
+      Simulator sim(model, 1, o, std::move(dofs));
+      ADD_FAILURE() << "no error for " << piece;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(piece), std::string::npos) << e.what();
+    }
+  };
+  StepOptions o;
+  o.dt = 0.0;
+  expect_error(o, {}, "StepOptions::dt");
+  o = StepOptions();
+  o.integrator = Integrator::RK4;
+  expect_error(o, {}, "RK4");
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  dofs[0].drive_damping = -1.0;
+  expect_error(StepOptions(), dofs, "DOF 0 (wheel_joint): drive_damping");
+  expect_error(StepOptions(), std::vector<DofSettings>(3), "3 DOF settings");
+  const Model box = free_box(Eigen::Vector3d::Constant(0.1), 1.0);
+  std::vector<DofSettings> box_dofs = default_dof_settings(box);
+  box_dofs[2].drive_stiffness = 1.0;
+  try {
+    Simulator sim(box, 1, StepOptions(), box_dofs);
+    ADD_FAILURE() << "a floating base took a drive";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("floating base takes no drive"), std::string::npos) << e.what();
+  }
+  Simulator sim(model, 2);
+  EXPECT_THROW(sim.set_state(2, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1)), std::out_of_range);
+  EXPECT_THROW(sim.set_torque(0, Eigen::VectorXd::Zero(3)), std::invalid_argument);
+  EXPECT_THROW(sim.batch<double>(), std::logic_error);
+}
+
+}  // namespace
+}  // namespace lockstep
