@@ -171,6 +171,96 @@ TEST(Simulator, AppliedTorqueBalancesTheEquationOfMotion) {
                                                                                           << "\nrhs " << rhs.transpose();
 }
 
+// An Acceleration drive's gains are in 1/s^2 and 1/s: the response of a
+// single joint does not depend on its inertia (PhysX eACCELERATION).
+TEST(Simulator, AccelerationDriveIgnoresInertia) {
+  std::vector<Eigen::VectorXd> trajectories;
+  for (double inertia : {0.01, 10.0}) {
+    const Model model = spinner(inertia);
+    std::vector<DofSettings> dofs = default_dof_settings(model);
+    dofs[0].drive_type = DriveType::Acceleration;
+    dofs[0].drive_stiffness = 400.0;
+    dofs[0].drive_damping = 40.0;
+    Simulator sim(model, 1, double_options(0.005), dofs);
+    sim.set_drive_target(0, Eigen::VectorXd::Constant(1, 1.0), Eigen::VectorXd::Zero(1));
+    Eigen::VectorXd q(20);
+    for (int i = 0; i < 20; ++i) sim.step(), q[i] = sim.q(0)[0];
+    trajectories.push_back(q);
+  }
+  EXPECT_GT(trajectories[0][19], 0.5);
+  // Same arithmetic up to the order of a product with I: a few ulps.
+  EXPECT_LT((trajectories[0] - trajectories[1]).cwiseAbs().maxCoeff(), 1e-13);
+}
+
+// A drive on a spherical joint turns it to the target orientation: RaiSim's
+// error is the rotation vector of q^-1 q_target.
+TEST(Simulator, SphericalDriveReachesTargetOrientation) {
+  ArticulationSpec spec;
+  spec.name = "ball";
+  LinkSpec base;
+  base.name = "base";
+  spec.links.push_back(base);
+  LinkSpec link = test::joint_link("arm", "base", JointType::Spherical, Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero());
+  link.inertial.mass = 1.0;
+  link.inertial.inertia = Eigen::Vector3d(0.02, 0.03, 0.04).asDiagonal();
+  spec.links.push_back(link);
+  ModelBuilder builder;
+  builder.add_articulation(spec);
+  const Model model = builder.finalize();
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (DofSettings& d : dofs) d.drive_stiffness = 20.0, d.drive_damping = 2.0;
+  Simulator sim(model, 1, double_options(0.005), dofs);
+  const Eigen::Quaterniond target(Eigen::AngleAxisd(0.8, Eigen::Vector3d(1, 2, 3).normalized()));
+  sim.set_drive_target(0, Eigen::Vector4d(target.w(), target.x(), target.y(), target.z()), Eigen::VectorXd::Zero(3));
+  sim.step(1000);
+  const Eigen::VectorXd q = sim.q(0);
+  const Eigen::Quaterniond reached(q[0], q[1], q[2], q[3]);
+  EXPECT_LT(reached.angularDistance(target), 1e-6);
+}
+
+// The Stribeck force: a linear ramp to the static peak below the fall-off
+// velocity, the Coulomb force plus a Gaussian fall-off of the extra above.
+TEST(Simulator, StribeckFrictionFollowsItsCurve) {
+  const Model model = spinner(0.1);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  dofs[0].friction = 1.0;
+  dofs[0].friction_model = FrictionModel::Stribeck;
+  dofs[0].stiction_extra = 0.5;
+  dofs[0].falloff_velocity = 0.01;
+  dofs[0].stribeck_velocity = 0.1;
+  StepOptions o = double_options(0.001);
+  o.record_applied_torque = true;
+  Simulator sim(model, 1, o, dofs);
+  EXPECT_TRUE(sim.plan()[static_cast<int>(Stage::StribeckFriction)].runs);
+  EXPECT_FALSE(sim.plan()[static_cast<int>(Stage::CoulombFriction)].runs);
+  for (double v : {0.005, -0.005, 0.05, 1.0}) {
+    sim.set_state(0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, v));
+    sim.step();
+    const double speed = std::abs(v);
+    const double magnitude =
+        speed < 0.01 ? 1.5 * speed / 0.01 : 1.0 + 0.5 * std::exp(-std::pow((speed - 0.01) / 0.1, 2));
+    EXPECT_NEAR(sim.applied_torque(0).passive[0], -std::copysign(magnitude, v), 1e-12) << "v = " << v;
+  }
+}
+
+// URDF effort, velocity, damping and friction are the defaults.
+TEST(Simulator, UrdfValuesAreTheDefaults) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  const std::vector<DofSettings> dofs = default_dof_settings(model);
+  const int haa = model.dof_index("LF_HAA");
+  EXPECT_EQ(dofs[haa].max_force, 80.0);
+  EXPECT_EQ(dofs[haa].velocity_limit, 15.0);
+  EXPECT_EQ(dofs[haa].lower, -9.42);
+  EXPECT_EQ(dofs[0].max_force, Model::kInfinity);  // the base
+  const Model ur5 = test::load_shared_model("ur5", false);
+  const std::vector<DofSettings> ur5_dofs = default_dof_settings(ur5);
+  for (int k = 0; k < ur5.nv; ++k) {
+    EXPECT_EQ(ur5_dofs[k].damping, ur5.dof_damping[k]);
+    EXPECT_EQ(ur5_dofs[k].friction, ur5.dof_friction[k]);
+    EXPECT_EQ(ur5_dofs[k].max_force, ur5.dof_effort_limit[k]);
+  }
+}
+
 TEST(Simulator, PlanSaysWhichStagesRunAndWhy) {
   const Model model = test::load_shared_model("anymal_b", true);
   Simulator sim(model, 4);

@@ -1,0 +1,74 @@
+// The constraint solver alone, on small problems with known solutions: a
+// one-sided row, a boxed row, and a friction row bounded by a normal row's
+// impulse (the coupling contacts will use).
+#include "kernels/row_solver.hpp"
+
+#include <gtest/gtest.h>
+
+namespace lockstep {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// A normal row (v0 >= 1, lambda0 >= 0) and a friction row (v1 = 0,
+// |lambda1| <= 0.5 lambda0) coupled by D = [[2, 0.5], [0.5, 1]], v_free =
+// (-1, 3). The friction row saturates: lambda1 = -lambda0 / 2, and
+// v0 = -1 + 2 lambda0 - lambda0 / 4 = 1 gives lambda0 = 8/7, lambda1 = -4/7.
+RowBlock<double> cone_problem() {
+  RowBlock<double> rows(2);
+  rows.D = {2.0, 0.5, 0.5, 1.0};
+  rows.v_free = {-1.0, 3.0};
+  rows.target = {1.0, 0.0};
+  rows.lo = {0.0, -kInf};
+  rows.hi = {kInf, kInf};
+  rows.bound_row[1] = 0;
+  rows.mu[1] = 0.5;
+  rows.lambda = {0.0, 0.0};
+  return rows;
+}
+
+TEST(RowSolver, PgsSolvesAFrictionConeProblem) {
+  RowBlock<double> rows = cone_problem();
+  pgs_solve(rows, 60);  // the Gauss-Seidel contraction here is about 1/8 per sweep
+  EXPECT_NEAR(rows.lambda[0], 8.0 / 7.0, 1e-12);
+  EXPECT_NEAR(rows.lambda[1], -4.0 / 7.0, 1e-12);
+}
+
+TEST(RowSolver, RowsAtRestNeedNoImpulse) {
+  RowBlock<double> rows = cone_problem();
+  EXPECT_FALSE(rows_at_rest(rows));  // v0 = -1 < 1: the normal row pushes
+  rows.v_free = {2.0, 3.0};          // separating: friction has no normal force to lean on
+  EXPECT_TRUE(rows_at_rest(rows));
+  rows.lo[0] = -1.0;                 // a boxed row that can pull does act
+  rows.bound_row[1] = -1;
+  rows.lo[1] = -1.0, rows.hi[1] = 1.0;
+  EXPECT_FALSE(rows_at_rest(rows));
+}
+
+// A positional row 0.05 from its limit, approaching at 10 per second over a
+// step of 0.01: TGS lets it close the gap exactly and stops there, PGS the
+// same in one sweep (the speculative target -e/dt).
+TEST(RowSolver, TgsAndPgsCloseAGapExactly) {
+  for (bool tgs : {false, true}) {
+    RowBlock<double> rows(1);
+    rows.D = {0.5};
+    rows.v_free = {-10.0};
+    rows.error = {0.05};
+    rows.positional[0] = 1;
+    rows.target = {positional_target(0.05, 0.01, 0.01, 0.2)};
+    rows.lo = {0.0};
+    rows.hi = {kInf};
+    rows.lambda = {0.0};
+    if (tgs) {
+      tgs_solve(rows, 4, 0.01, 0.2);
+      // displacement over the step: the gap, never more
+      EXPECT_NEAR(rows.displacement[0], -0.05, 1e-15);
+    } else {
+      pgs_solve(rows, 1);
+      EXPECT_NEAR(-10.0 + 0.5 * rows.lambda[0], -5.0, 1e-12);  // v = -e/dt
+    }
+  }
+}
+
+}  // namespace
+}  // namespace lockstep
