@@ -73,7 +73,7 @@ struct Workspace {
   std::vector<Vec6<L>> force;         // (nbody) RNEA force / ABA articulated bias pA
   std::vector<Inertia6<L>> inertia;   // (nbody) articulated or composite inertia
   std::vector<L> joint_U;             // (nv x 6) U = IA S, one 6-column per DOF
-  std::vector<L> joint_Dinv;          // (sum over bodies of ndof^2) (S^T IA S + armature)^-1
+  std::vector<L> joint_Dinv;          // (sum over bodies of ndof^2) D^-1 (1-DOF joints) or the L D L^T factor of D = S^T IA S + armature + w
   std::vector<int> joint_Dinv_offset; // (nbody)
   std::vector<L> joint_u;             // (nv) u = tau - S^T pA
   std::vector<L> matrix;              // (nv x nv) mass matrix / factorisation
