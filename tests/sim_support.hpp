@@ -75,3 +75,98 @@ inline Model free_box(const Eigen::Vector3d& half, double mass) {
 }
 
 }  // namespace lockstep::test
+
+// ---- Step scenes with random per-copy inputs (determinism, faults, stages) ----
+#include <algorithm>
+#include <cstring>
+#include <ios>
+#include <sstream>
+
+namespace lockstep::test {
+
+// Bit-for-bit equality of two vectors (a float batch's values widen to
+// double exactly, so this compares the stored bits, signs of zero included).
+inline ::testing::AssertionResult same_bits(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  if (a.size() != b.size()) return ::testing::AssertionFailure() << "sizes " << a.size() << " and " << b.size();
+  for (Eigen::Index i = 0; i < a.size(); ++i)
+    if (std::memcmp(&a[i], &b[i], sizeof(double)) != 0) {
+      std::ostringstream values;
+      values << std::hexfloat << a[i] << " vs " << b[i];
+      return ::testing::AssertionFailure() << "entry " << i << ": " << values.str();
+    }
+  return ::testing::AssertionSuccess();
+}
+
+// Copy ca of a and copy cb of b hold the same q and v, bit for bit.
+inline ::testing::AssertionResult same_state(const Simulator& a, int ca, const Simulator& b, int cb) {
+  ::testing::AssertionResult r = same_bits(a.q(ca), b.q(cb));
+  if (!r) return r << " in q";
+  r = same_bits(a.v(ca), b.v(cb));
+  if (!r) return r << " in v";
+  return r;
+}
+
+// Joint effects on every revolute or prismatic DOF: damping, Coulomb
+// friction, hard limits [-range, range] and a velocity limit (drives come
+// per copy, from CopyInputs). A floating base stays free.
+inline std::vector<DofSettings> limited_dofs(const Model& model, double range, double velocity_limit) {
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (int k = 0; k < model.nv; ++k) {
+    if (model.body_joint[model.dof_body[k]] == JointType::Free) continue;
+    dofs[k].damping = 0.3;
+    dofs[k].friction = 0.2;
+    dofs[k].lower = -range;
+    dofs[k].upper = range;
+    dofs[k].velocity_limit = velocity_limit;
+  }
+  return dofs;
+}
+
+// One copy's initial state and inputs, drawn from its own seed so that the
+// same copy can be placed anywhere in any batch.
+struct CopyInputs {
+  Eigen::VectorXd q, v, tau, target_q, target_v, kp, kd;  // kp = kd = 0: no set_drive_gains
+  bool push = true;  // set_link_wrench(body, wrench)
+  int body = 0;
+  Eigen::Matrix<double, 6, 1> wrench;
+};
+
+// 1-DOF joints start in the middle 80 % of their range clipped to
+// [-1, 1] and are driven toward targets in [-1, 1] (beyond narrow limits);
+// velocities up to `speed`.
+inline CopyInputs random_copy_inputs(const Model& model, const std::vector<DofSettings>& dofs, unsigned seed,
+                                     double speed = 4.0) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  CopyInputs in;
+  in.q = random_configuration(model, rng);
+  in.v = random_vector(model.nv, rng, speed);
+  in.tau = random_vector(model.nv, rng, 5.0);
+  in.target_q = model.neutral_configuration();
+  in.target_v = random_vector(model.nv, rng, 1.0);
+  in.kp = Eigen::VectorXd::Zero(model.nv);
+  in.kd = Eigen::VectorXd::Zero(model.nv);
+  for (int k = 0; k < model.nv; ++k) {
+    const int b = model.dof_body[k];
+    if (model.body_joint[b] != JointType::Revolute && model.body_joint[b] != JointType::Prismatic) continue;
+    const int qk = model.body_q_offset[b] + (k - model.body_dof_offset[b]);
+    const double lo = std::max(dofs[k].lower, -1.0), hi = std::min(dofs[k].upper, 1.0);
+    in.q[qk] = lo + (hi - lo) * (0.1 + 0.8 * unit(rng));
+    in.target_q[qk] = 2.0 * unit(rng) - 1.0;
+    in.kp[k] = 100.0 * unit(rng);
+    in.kd[k] = 3.0 * unit(rng);
+  }
+  in.body = static_cast<int>(unit(rng) * model.nbody) % model.nbody;
+  in.wrench << random_vector(3, rng, 20.0), random_vector(3, rng, 2.0);
+  return in;
+}
+
+inline void apply_copy_inputs(Simulator& sim, int copy, const CopyInputs& in) {
+  sim.set_state(copy, in.q, in.v);
+  sim.set_torque(copy, in.tau);
+  sim.set_drive_target(copy, in.target_q, in.target_v);
+  sim.set_drive_gains(copy, in.kp, in.kd);
+  if (in.push) sim.set_link_wrench(copy, in.body, in.wrench);
+}
+
+}  // namespace lockstep::test
