@@ -1,6 +1,6 @@
 #include "batch/simulator.hpp"
 
-#include "batch/copy_dynamics.hpp"
+#include "batch/batch_dynamics.hpp"
 #include "batch/step_engine.hpp"
 
 #include <cmath>
@@ -405,9 +405,21 @@ AppliedTorque Simulator::applied_torque(int copy) const {
 }
 
 double Simulator::energy(int copy) const {
-  const CopyDynamics dynamics(*model_, Precision::Double);
-  const Eigen::VectorXd qc = q(copy), vc = v(copy);
-  return dynamics.kinetic_energy(qc, vc) + dynamics.potential_energy(qc);
+  check_copy(copy);
+  // One copy's state, inertial parameters and gravity, in double.
+  const BatchDynamics<double> dynamics(*model_);
+  BatchState<double> one = dynamics.make_state(1);
+  visit([&](auto& b) {
+    one.q.set(0, b.state.q.get(copy));
+    one.v.set(0, b.state.v.get(copy));
+    one.inertia.set(0, b.state.inertia.get(copy));
+    one.gravity.set(0, b.state.gravity.get(copy));
+    return 0;
+  });
+  BatchArray<double> kinetic = dynamics.make_array(1, 1), potential = dynamics.make_array(1, 1);
+  dynamics.kinetic_energy(one, kinetic);
+  dynamics.potential_energy(one, potential);
+  return kinetic.at(0, 0) + potential.at(0, 0);
 }
 
 }  // namespace lockstep

@@ -111,7 +111,7 @@ class Simulator {
 
   AppliedTorque applied_torque(int copy) const;  // needs record_applied_torque
   // Mechanical energy (kinetic + gravity potential) of one copy, in double,
-  // with the model's inertial parameters and gravity.
+  // with the copy's inertial parameters and gravity.
   double energy(int copy) const;
 
   // The storage, for bulk reads and writes; T must be the chosen precision.

@@ -43,6 +43,34 @@ inline void ldlt_solve(int n, const L* f, L* x) {
     for (int k = i + 1; k < n; ++k) x[i] = lane::fnmadd(f[k * n + i], x[k], x[i]);
 }
 
+// LU factorisation without pivoting of a small matrix whose symmetric part
+// is positive definite (a Free root's D plus its implicit gyroscopic
+// Jacobian), in place: unit-lower multipliers below the diagonal, 1/U_kk on
+// it, U above.
+template <class L>
+inline void lu_factor(int n, L* a) {
+  using T = lane::scalar_t<L>;
+  for (int k = 0; k < n; ++k) {
+    const L inv = L(T(1)) / a[k * n + k];
+    a[k * n + k] = inv;
+    for (int i = k + 1; i < n; ++i) {
+      const L f = a[i * n + k] * inv;
+      a[i * n + k] = f;
+      for (int j = k + 1; j < n; ++j) a[i * n + j] = lane::fnmadd(f, a[k * n + j], a[i * n + j]);
+    }
+  }
+}
+
+template <class L>
+inline void lu_solve(int n, const L* f, L* x) {
+  for (int i = 1; i < n; ++i)
+    for (int k = 0; k < i; ++k) x[i] = lane::fnmadd(f[i * n + k], x[k], x[i]);
+  for (int i = n - 1; i >= 0; --i) {
+    for (int k = i + 1; k < n; ++k) x[i] = lane::fnmadd(f[i * n + k], x[k], x[i]);
+    x[i] = x[i] * f[i * n + i];
+  }
+}
+
 // The plain joint-terms policy: tau from the inputs (zero when absent), no
 // implicit diagonal. A policy's apply(dof, D, tau) is given the DOF's
 // D = S^T IA S + armature (its articulated inertia, before w) and returns w
@@ -55,7 +83,30 @@ struct InputTorques {
     tau_out = tau ? lane::load<L>(tau + dof * lane::width_v<L>) : L(T(0));
     return L(T(0));
   }
+  // The step h over which a Free body's gyroscopic force is implicit; 0: explicit.
+  lane::scalar_t<L> implicit_gyroscopic_step() const { return 0; }
 };
+
+// h G for a Free body: G = d(v x* I v)/dv, the Jacobian of its velocity-
+// product force, column j = e_j x* (I v) + v x* (I e_j). With it the force
+// is taken at the end of the step, f(v1) ~ f(v0) + G (v1 - v0), and h G
+// joins the body's D (backward Euler on the gyroscopic term, as for a free
+// rigid body in Catto's "Numerical Methods", GDC 2015): a body spinning
+// near its intermediate or major axis no longer gains energy every step.
+template <class L>
+inline void gyroscopic_jacobian(const Inertia6<L>& I, const Vec6<L>& v, lane::scalar_t<L> h, L* hG) {
+  using T = lane::scalar_t<L>;
+  const Vec6<L> momentum = spatial::mul(I, v);
+  for (int j = 0; j < 6; ++j) {
+    Vec6<L> unit, column;
+    for (int r = 0; r < 6; ++r) {
+      unit.e[r] = L(T(r == j ? 1 : 0));
+      column.e[r] = spatial::at(I, r, j);
+    }
+    const Vec6<L> g = spatial::add(spatial::force_cross(unit, momentum), spatial::force_cross(v, column));
+    for (int r = 0; r < 6; ++r) hG[r * 6 + j] = L(h) * g.e[r];
+  }
+}
 
 // Pass 2 for body b with an N-DOF joint (N a compile-time constant so the
 // small loops unroll): U = IA S, D = S^T U + armature, u = tau - S^T pA, and
@@ -80,13 +131,19 @@ inline void aba_backward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, 
     Dkk = Dkk + terms.apply(dof0 + k, Dkk, tau_k);
     ws.joint_u[dof0 + k] = tau_k - pA.e[axes[k]];
   }
-  // D^-1 for one DOF, else D's L D L^T factor
+  // D^-1 for one DOF; D's L D L^T factor for a Spherical joint; for a Free
+  // root, the LU factor of D plus its implicit gyroscopic Jacobian h G
+  // (not symmetric), kept by pass 1 in ws.gyroscopic.
   L* F = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
   if constexpr (N == 1) {
     F[0] = L(T(1)) / D[0];
-  } else {
+  } else if constexpr (N == 3) {
     for (int k = 0; k < N * N; ++k) F[k] = D[k];
     ldlt_factor(N, F);
+  } else {
+    const L* hG = &ws.gyroscopic[ws.joint_Dinv_offset[b]];
+    for (int k = 0; k < N * N; ++k) F[k] = terms.implicit_gyroscopic_step() != 0 ? D[k] + hG[k] : D[k];
+    lu_factor(N, F);
   }
   const int parent = km.body_parent[b];
   if (parent < 0) return;
@@ -129,7 +186,8 @@ inline void aba_forward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, c
     qdd[k] = sum;
   }
   if constexpr (N == 1) qdd[0] = F[0] * qdd[0];
-  else ldlt_solve(N, F, qdd);
+  else if constexpr (N == 3) ldlt_solve(N, F, qdd);
+  else lu_solve(N, F, qdd);
   for (int k = 0; k < N; ++k) {
     lane::store(qdd[k], qacc_out + (dof0 + k) * W);
     a.e[axes[k]] = a.e[axes[k]] + qdd[k];
@@ -148,6 +206,8 @@ void aba_with(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::
     const BodyInertia<L> I = load_body_inertia<L>(in.inertia, b);
     const Vec6<L>& v = ws.velocity[b];
     ws.inertia[b] = rigid_inertia(I);
+    if (km.body_joint[b] == JointType::Free && terms.implicit_gyroscopic_step() != 0)
+      gyroscopic_jacobian(ws.inertia[b], v, terms.implicit_gyroscopic_step(), &ws.gyroscopic[ws.joint_Dinv_offset[b]]);
     Vec6<L> pA = spatial::force_cross(v, rigid_mul(I, v));
     if (in.wrench) pA = spatial::sub(pA, body_wrench<L>(in.wrench, b, ws.world[b], I.com));
     ws.force[b] = pA;

@@ -157,6 +157,9 @@ struct StepJointTerms {
   const JointTermModel<T>& jm;
   JointTermScratch<L>& s;
   const T* tau_ff;  // (nv) per lane
+  T gyroscopic_step;  // h for an implicit gyroscopic term on Free bodies, 0 for explicit
+
+  T implicit_gyroscopic_step() const { return gyroscopic_step; }
 
   L apply(int dof, const L& D, L& tau) const {
     constexpr std::size_t W = lane::width_v<L>;

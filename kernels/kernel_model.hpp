@@ -75,6 +75,7 @@ struct Workspace {
   std::vector<L> joint_U;             // (nv x 6) U = IA S, one 6-column per DOF
   std::vector<L> joint_Dinv;          // (sum over bodies of ndof^2) D^-1 (1-DOF joints) or the L D L^T factor of D = S^T IA S + armature + w
   std::vector<int> joint_Dinv_offset; // (nbody)
+  std::vector<L> gyroscopic;          // like joint_Dinv: h G of Free bodies (see aba.hpp)
   std::vector<L> joint_u;             // (nv) u = tau - S^T pA
   std::vector<L> matrix;              // (nv x nv) mass matrix / factorisation
   std::vector<L> vector;              // (nv) temporary
@@ -96,6 +97,7 @@ Workspace<L>::Workspace(const KernelModel<T>& km)
     offset += n * n;
   }
   joint_Dinv.resize(offset);
+  gyroscopic.resize(offset);
 }
 
 }  // namespace lockstep
