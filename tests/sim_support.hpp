@@ -161,12 +161,52 @@ inline CopyInputs random_copy_inputs(const Model& model, const std::vector<DofSe
   return in;
 }
 
+// The row impulses of one copy's last step: its warm start.
+inline Eigen::VectorXd row_impulses(const Simulator& sim, int copy) {
+  if (sim.options().precision == Precision::Float) return sim.batch<float>().impulse.get(copy);
+  return sim.batch<double>().impulse.get(copy);
+}
+
+// Copies whose rows pushed in the last step (a non-zero impulse).
+inline int copies_with_impulses(const Simulator& sim) {
+  int count = 0;
+  for (int c = 0; c < sim.copies(); ++c)
+    count += sim.row_count() > 0 && row_impulses(sim, c).cwiseAbs().maxCoeff() > 0;
+  return count;
+}
+
 inline void apply_copy_inputs(Simulator& sim, int copy, const CopyInputs& in) {
   sim.set_state(copy, in.q, in.v);
   sim.set_torque(copy, in.tau);
   sim.set_drive_target(copy, in.target_q, in.target_v);
   sim.set_drive_gains(copy, in.kp, in.kd);
   if (in.push) sim.set_link_wrench(copy, in.body, in.wrench);
+}
+
+// n seeds from `first` on.
+inline std::vector<unsigned> seed_range(int n, unsigned first) {
+  std::vector<unsigned> seeds(n);
+  for (int c = 0; c < n; ++c) seeds[c] = first + static_cast<unsigned>(c);
+  return seeds;
+}
+
+// The step options of these scenes: dt 4 ms, 8 solver iterations.
+inline StepOptions scene_options(Precision precision, SolverType solver) {
+  StepOptions o;
+  o.dt = 0.004;
+  o.precision = precision;
+  o.solver = solver;
+  o.iterations = 8;
+  return o;
+}
+
+// A simulator whose copy c holds the inputs drawn from seeds[c].
+inline Simulator simulator_with_inputs(const Model& model, const std::vector<DofSettings>& dofs,
+                                       const StepOptions& options, const std::vector<unsigned>& seeds) {
+  Simulator sim(model, static_cast<int>(seeds.size()), options, dofs);
+  for (std::size_t c = 0; c < seeds.size(); ++c)
+    apply_copy_inputs(sim, static_cast<int>(c), random_copy_inputs(model, dofs, seeds[c]));
+  return sim;
 }
 
 }  // namespace lockstep::test

@@ -38,19 +38,6 @@ std::vector<Case> all_cases() {
   return cases;
 }
 
-// Copies whose rows pushed in the last step (a non-zero impulse).
-template <class T>
-int copies_with_impulses(const StepBatch<T>& b) {
-  int count = 0;
-  for (int c = 0; c < b.copies(); ++c) count += b.impulse.size() > 0 && b.impulse.get(c).cwiseAbs().maxCoeff() > 0;
-  return count;
-}
-
-int copies_with_impulses(const Simulator& sim) {
-  if (sim.options().precision == Precision::Float) return copies_with_impulses(sim.batch<float>());
-  return copies_with_impulses(sim.batch<double>());
-}
-
 class StepDeterminism : public ::testing::TestWithParam<Case> {
  protected:
   void SetUp() override {
@@ -59,28 +46,17 @@ class StepDeterminism : public ::testing::TestWithParam<Case> {
   }
 
   StepOptions options(Lanes lanes = Lanes::Simd) const {
-    StepOptions o;
-    o.dt = 0.004;
-    o.precision = GetParam().precision;
-    o.solver = GetParam().solver;
-    o.iterations = 8;
+    StepOptions o = test::scene_options(GetParam().precision, GetParam().solver);
     o.lanes = lanes;
     return o;
   }
 
   // A simulator whose copy c holds the inputs drawn from seeds[c].
   Simulator make(const std::vector<unsigned>& seeds, const StepOptions& o) const {
-    Simulator sim(model_, static_cast<int>(seeds.size()), o, dofs_);
-    for (std::size_t c = 0; c < seeds.size(); ++c)
-      test::apply_copy_inputs(sim, static_cast<int>(c), test::random_copy_inputs(model_, dofs_, seeds[c]));
-    return sim;
+    return test::simulator_with_inputs(model_, dofs_, o, seeds);
   }
 
-  static std::vector<unsigned> seeds(int n) {
-    std::vector<unsigned> s(n);
-    for (int c = 0; c < n; ++c) s[c] = 1000u + static_cast<unsigned>(c);
-    return s;
-  }
+  static std::vector<unsigned> seeds(int n) { return test::seed_range(n, 1000u); }
 
   // Every copy of `other` equals the copy of `reference` that has its seed.
   static void expect_same_copies(const Simulator& reference, const std::vector<unsigned>& reference_seeds,
@@ -109,7 +85,7 @@ TEST_P(StepDeterminism, SceneEngagesTheRowsInSomeCopies) {
     EXPECT_TRUE(sim.plan()[static_cast<int>(stage)].runs) << stage_name(stage) << "\n" << sim.describe_plan();
   sim.step(kSteps);
   EXPECT_EQ(sim.fault_count(), 0);
-  EXPECT_GT(copies_with_impulses(sim), 0);
+  EXPECT_GT(test::copies_with_impulses(sim), 0);
   // friction rows push in every moving copy; position limits in some only
   int at_limit = 0;
   for (int c = 0; c < sim.copies(); ++c) {
@@ -193,16 +169,13 @@ TEST(StepDeterminismImplicitTerms, SimdLanesMatchScalarReference) {
     if (leg % 2 == 0) d.limit_stiffness = 400.0, d.limit_damping = 4.0;
     ++leg;
   }
+  const std::vector<unsigned> seeds = test::seed_range(37, 2000u);
   for (Precision precision : {Precision::Float, Precision::Double}) {
     std::vector<Simulator> runs;
     for (Lanes lanes : {Lanes::Scalar, Lanes::Simd}) {
-      StepOptions o;
-      o.dt = 0.004;
-      o.precision = precision;
+      StepOptions o = test::scene_options(precision, SolverType::PGS);
       o.lanes = lanes;
-      Simulator sim(model, 37, o, dofs);
-      for (int c = 0; c < sim.copies(); ++c)
-        test::apply_copy_inputs(sim, c, test::random_copy_inputs(model, dofs, 2000u + static_cast<unsigned>(c)));
+      Simulator sim = test::simulator_with_inputs(model, dofs, o, seeds);
       for (Stage stage : {Stage::Springs, Stage::SoftLimits, Stage::HardLimits, Stage::CoulombFriction})
         EXPECT_TRUE(sim.plan()[static_cast<int>(stage)].runs) << stage_name(stage);
       sim.step(kSteps);
