@@ -1,0 +1,224 @@
+// The stage plan: a feature a scene does not use costs nothing, so forcing
+// its stage on or off gives bit-identical states; describe_plan names every
+// stage with its decision and reason; set_drive_gains and set_link_wrench
+// switch their stages on, and a link wrench acts as a world force and torque
+// at the body's COM.
+#include "tests/sim_support.hpp"
+
+#include <algorithm>
+
+namespace lockstep {
+namespace {
+
+using test::same_bits;
+using test::same_state;
+
+constexpr int kCopies = 24;  // float: 2 blocks (8 padding lanes); double: 3 blocks
+constexpr int kSteps = 8;
+
+Stage stage_at(int i) { return static_cast<Stage>(i); }
+
+// anymal_b floating, its 12 leg DOFs with every joint effect except the one
+// of `unused` (Stage::Count: none): damping, springs, spring-damper limits on
+// even legs DOFs and hard limits [-0.3, 0.3] on odd ones, velocity limits of
+// 5 rad/s, Coulomb friction on every third DOF and Stribeck friction on the
+// next. A scene without hard (velocity) limits keeps them, 3 rad (1000
+// rad/s) away: never reached. Drives and wrenches come per copy.
+std::vector<DofSettings> scene_dofs(const Model& model, Stage unused) {
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (int k = 0, leg = 0; k < model.nv; ++k) {
+    if (model.body_joint[model.dof_body[k]] == JointType::Free) continue;
+    DofSettings& d = dofs[k];
+    d.damping = unused == Stage::Damping ? 0.0 : 0.2;
+    d.spring_stiffness = unused == Stage::Springs ? 0.0 : 4.0;
+    d.spring_rest = 0.1;
+    const bool soft = leg % 2 == 0 && unused != Stage::SoftLimits;
+    const double range = !soft && unused == Stage::HardLimits ? 3.0 : 0.3;
+    d.lower = -range;
+    d.upper = range;
+    if (soft) d.limit_stiffness = 400.0, d.limit_damping = 4.0;
+    d.velocity_limit = unused == Stage::VelocityLimits ? 1e3 : 5.0;
+    if (leg % 3 == 0 && unused != Stage::CoulombFriction) d.friction = 0.3;
+    if (leg % 3 == 1 && unused != Stage::StribeckFriction) {
+      d.friction_model = FrictionModel::Stribeck;
+      d.friction = 0.3;
+      d.stiction_extra = 0.2;
+      d.stribeck_velocity = 0.5;
+    }
+    ++leg;
+  }
+  return dofs;
+}
+
+// The scene's simulator with per-copy states, torques, targets and (unless
+// unused) drive gains and link wrenches, stepped kSteps times.
+Simulator run_scene(const Model& model, Stage unused, const StepOptions& options) {
+  const std::vector<DofSettings> dofs = scene_dofs(model, unused);
+  Simulator sim(model, kCopies, options, dofs);
+  for (int c = 0; c < kCopies; ++c) {
+    test::CopyInputs in = test::random_copy_inputs(model, dofs, 300u + static_cast<unsigned>(c), 2.0);
+    if (unused == Stage::Drives) in.kp.setZero(), in.kd.setZero();
+    in.push = unused != Stage::ExternalWrenches;
+    test::apply_copy_inputs(sim, c, in);
+  }
+  sim.step(kSteps);
+  return sim;
+}
+
+std::string stage_test_name(const ::testing::TestParamInfo<int>& info) {
+  std::string name = stage_name(stage_at(info.param));
+  std::replace(name.begin(), name.end(), ' ', '_');
+  return name;
+}
+
+class StepStages : public ::testing::TestWithParam<int> {};
+
+// A scene without the stage's feature gives the same bits with the stage
+// forced on, forced off, or left to the plan; every other stage runs.
+TEST_P(StepStages, UnusedStageCostsNothing) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  const Stage unused = stage_at(GetParam());
+  for (Precision precision : {Precision::Float, Precision::Double})
+    for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
+      const std::string where = std::string(precision_name(precision)) + " " + solver_name(solver);
+      StepOptions o = test::scene_options(precision, solver);
+      const Simulator automatic = run_scene(model, unused, o);
+      const Simulator on = run_scene(model, unused, o.force(unused, StageMode::On));
+      const Simulator off = run_scene(model, unused, o.force(unused, StageMode::Off));
+      for (int s = 0; s < kStageCount; ++s)
+        if (s != GetParam()) EXPECT_TRUE(automatic.plan()[s].runs) << where << ": " << stage_name(stage_at(s));
+      EXPECT_TRUE(on.plan()[GetParam()].runs) << where;
+      EXPECT_FALSE(off.plan()[GetParam()].runs) << where;
+      EXPECT_GT(test::copies_with_impulses(on), 0) << where << ": the solver pushes";
+      for (int c = 0; c < kCopies; ++c) {
+        EXPECT_TRUE(same_state(on, c, off, c)) << where << ", forced on against off: copy " << c;
+        EXPECT_TRUE(same_state(automatic, c, off, c)) << where << ", automatic against off: copy " << c;
+      }
+      EXPECT_EQ(on.fault_count(), 0) << where;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(, StepStages, ::testing::Range(0, kStageCount), stage_test_name);
+
+// Every stage has one line: its name, runs or skipped, and why.
+TEST(StepStagesPlan, DescribePlanListsEveryStageWithItsReason) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  const Simulator full = run_scene(model, Stage::Count, test::scene_options(Precision::Float, SolverType::PGS));
+  StepOptions o;
+  o.force(Stage::Damping, StageMode::On).force(Stage::HardLimits, StageMode::Off);
+  const Simulator bare(model, 4, o);
+  for (const Simulator* sim : {&full, &bare}) {
+    const std::string text = sim->describe_plan();
+    ASSERT_EQ(sim->plan().size(), static_cast<std::size_t>(kStageCount));
+    for (int s = 0; s < kStageCount; ++s) {
+      const StageDecision& d = sim->plan()[s];
+      EXPECT_EQ(d.stage, stage_at(s));
+      EXPECT_FALSE(d.reason.empty()) << stage_name(d.stage);
+      const std::string line = std::string("  ") + stage_name(d.stage) + ": " + (d.runs ? "runs" : "skipped") + " (" +
+                               d.reason + ")\n";
+      EXPECT_NE(text.find(line), std::string::npos) << "no line '" << line << "' in\n" << text;
+      if (sim == &full) EXPECT_TRUE(d.runs) << stage_name(d.stage);
+    }
+  }
+  const std::string text = bare.describe_plan();
+  for (const char* line : {"  drives: skipped (no DOFs with drive gains)\n",
+                           "  damping: runs (forced on (no DOFs with damping))\n",
+                           "  hard limits: skipped (forced off (12 DOFs with hard position limits))\n",
+                           "  velocity limits: runs (12 DOFs with velocity limits)\n",
+                           "  external wrenches: skipped (no calls of set_link_wrench)\n"})
+    EXPECT_NE(text.find(line), std::string::npos) << "no line '" << line << "' in\n" << text;
+}
+
+// Gains given to one copy switch the drives on for the scene; they act on
+// that copy only, and every copy without gains is as without the stage.
+TEST(StepStagesPlan, DriveGainsOnOneCopyTurnDrivesOn) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  const int driven = 9;
+  auto make = [&] {
+    Simulator sim(model, kCopies, test::scene_options(Precision::Float, SolverType::PGS));
+    std::mt19937 rng(11);
+    for (int c = 0; c < kCopies; ++c) {
+      sim.set_state(c, test::random_configuration(model, rng), test::random_vector(model.nv, rng, 1.0));
+      sim.set_drive_target(c, test::random_configuration(model, rng), Eigen::VectorXd::Zero(model.nv));
+    }
+    return sim;
+  };
+  Simulator reference = make();
+  Simulator sim = make();
+  const int drives = static_cast<int>(Stage::Drives);
+  EXPECT_FALSE(sim.plan()[drives].runs);
+  sim.set_drive_gains(driven, Eigen::VectorXd::Zero(model.nv), Eigen::VectorXd::Zero(model.nv));
+  EXPECT_FALSE(sim.plan()[drives].runs) << "zero gains are no drive";
+  Eigen::VectorXd kp = Eigen::VectorXd::Constant(model.nv, 50.0), kd = Eigen::VectorXd::Constant(model.nv, 2.0);
+  kp.head(6).setZero();  // the floating base takes no drive
+  kd.head(6).setZero();
+  sim.set_drive_gains(driven, kp, kd);
+  EXPECT_TRUE(sim.plan()[drives].runs);
+  EXPECT_NE(sim.describe_plan().find("  drives: runs ("), std::string::npos) << sim.describe_plan();
+  reference.step(kSteps);
+  sim.step(kSteps);
+  for (int c = 0; c < kCopies; ++c)
+    if (c != driven) EXPECT_TRUE(same_state(sim, c, reference, c)) << "copy " << c;
+  EXPECT_FALSE(same_state(sim, driven, reference, driven)) << "the drive did not act";
+}
+
+// set_link_wrench switches the stage on, and the wrench is a world force and
+// a torque about the COM: from rest without gravity one step gives the body
+// twist (R^T F / m, I^-1 R^T n) dt and moves the COM by F / m dt^2.
+TEST(StepStagesPlan, LinkWrenchActsAsWorldForceAndTorque) {
+  const double mass = 2.0, dt = 0.01;
+  const Eigen::Vector3d half(0.1, 0.2, 0.3);
+  const Model model = test::free_box(half, mass);
+  StepOptions o = test::scene_options(Precision::Double, SolverType::PGS);
+  o.dt = dt;
+  Simulator sim(model, 3, o);
+  const int wrenches = static_cast<int>(Stage::ExternalWrenches);
+  EXPECT_FALSE(sim.plan()[wrenches].runs);
+  const Eigen::Quaterniond turn = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, -1).normalized()));
+  const Eigen::Matrix3d R = turn.toRotationMatrix();
+  Eigen::VectorXd q = model.neutral_configuration();
+  q.segment<3>(0) = Eigen::Vector3d(0.5, -0.2, 1.0);
+  q.segment<4>(3) << turn.w(), turn.x(), turn.y(), turn.z();
+  Eigen::Matrix<double, 6, 1> wrench;
+  wrench << 3.0, -4.0, 5.0, 0.2, -0.1, 0.3;
+  for (int c = 0; c < 3; ++c) {
+    sim.set_state(c, q, Eigen::VectorXd::Zero(6));
+    sim.set_gravity(c, Eigen::Vector3d::Zero());
+  }
+  sim.set_link_wrench(0, 0, wrench);
+  sim.set_link_wrench(1, 0, Eigen::Matrix<double, 6, 1>::Zero());
+  EXPECT_TRUE(sim.plan()[wrenches].runs);
+  sim.set_gravity(2, Eigen::Vector3d(0, 0, -9.81));  // copy 2: gravity alone
+  sim.step();
+  const Eigen::Vector3d s = half.cwiseAbs2();
+  const Eigen::Vector3d inertia = mass / 3.0 * Eigen::Vector3d(s.y() + s.z(), s.x() + s.z(), s.x() + s.y());
+  const Eigen::Vector3d force = wrench.head<3>(), torque = wrench.tail<3>();
+  const Eigen::VectorXd v = sim.v(0);
+  EXPECT_LT((v.head<3>() - R.transpose() * force / mass * dt).cwiseAbs().maxCoeff(), 1e-14) << v.transpose();
+  EXPECT_LT((v.tail<3>() - (R.transpose() * torque).cwiseQuotient(inertia) * dt).cwiseAbs().maxCoeff(), 1e-13)
+      << v.transpose();
+  EXPECT_LT((sim.q(0).head<3>() - (q.head<3>() + force / mass * dt * dt)).cwiseAbs().maxCoeff(), 1e-14);
+  EXPECT_TRUE(same_bits(sim.v(1), Eigen::VectorXd::Zero(6))) << "a zero wrench moved copy 1";
+  EXPECT_LT((R * sim.v(2).head<3>() - Eigen::Vector3d(0, 0, -9.81 * dt)).cwiseAbs().maxCoeff(), 1e-14);
+}
+
+// A wrench written straight into the batch acts once the stage is forced on
+// (the plan counts only set_link_wrench calls).
+TEST(StepStagesPlan, BatchWrenchActsWithTheStageForcedOn) {
+  const double mass = 2.0, dt = 0.01;
+  const Model model = test::free_box(Eigen::Vector3d(0.1, 0.2, 0.3), mass);
+  for (StageMode mode : {StageMode::Auto, StageMode::On}) {
+    StepOptions o = test::scene_options(Precision::Double, SolverType::PGS);
+    o.dt = dt;
+    o.force(Stage::ExternalWrenches, mode);
+    Simulator sim(model, 2, o);
+    sim.set_gravity(1, Eigen::Vector3d::Zero());
+    sim.batch<double>().state.wrench.at(1, 0) = 4.0;  // copy 1, body 0, force x
+    sim.step();
+    const double expected = mode == StageMode::On ? 4.0 / mass * dt : 0.0;
+    EXPECT_NEAR(sim.v(1)[0], expected, 1e-15) << (mode == StageMode::On ? "forced on" : "automatic");
+  }
+}
+
+}  // namespace
+}  // namespace lockstep
