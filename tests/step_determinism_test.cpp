@@ -12,7 +12,6 @@
 namespace lockstep {
 namespace {
 
-using test::CopyInputs;
 using test::same_state;
 
 constexpr int kSteps = 6;
