@@ -34,6 +34,10 @@ constexpr const char* kUsage =
     "  dynamics MODEL.urdf --state STATE.json [--floating-base] [--precision float|double]\n"
     "      mass matrix, bias and gravity forces, forward dynamics, energies and\n"
     "      link poses for one state, as JSON\n"
+    "  bench [MODEL.urdf] [--copies N] [--threads 1,2] [--precision float,double]\n"
+    "        [--steps S] [--repeats R] [--dt DT] [--mujoco-steps M] [--no-mujoco] [--json]\n"
+    "      env-steps per second of the simulation step on a floating-base model\n"
+    "      holding a standing pose (default: anymal_b), MuJoCo beside it if built in\n"
     "  demo\n"
     "      info and dynamics on the bundled model (also what no command does)\n"
     "  help\n"
@@ -138,6 +142,7 @@ int main(int argc, char** argv, std::ostream& out, std::ostream& err) {
   try {
     if (command == "info") return run_info(args, out);
     if (command == "dynamics") return run_dynamics(args, out);
+    if (command == "bench") return run_bench(args, out);
     if (command == "demo") return run_demo(args, out);
     if (command == "help" || command == "--help" || command == "-h") {
       out << kUsage;

@@ -56,6 +56,11 @@ void print_info_json(const LoadedModel& loaded, std::ostream& out);
 // `lockstep dynamics MODEL.urdf --state STATE.json [--floating-base] [--precision float|double]`
 int run_dynamics(const std::vector<std::string>& args, std::ostream& out);
 
+// `lockstep bench [MODEL.urdf] [--copies N] [--threads LIST] [--precision LIST]
+// [--steps S] [--repeats R] [--dt DT] [--mujoco-steps M] [--no-mujoco] [--json]`:
+// env-steps per second of the simulation step (and of MuJoCo when built with it).
+int run_bench(const std::vector<std::string>& args, std::ostream& out);
+
 // `lockstep demo`: info and dynamics on the bundled model.
 int run_demo(const std::vector<std::string>& args, std::ostream& out);
 

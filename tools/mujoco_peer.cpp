@@ -10,6 +10,7 @@
 #include <cmath>
 #include <memory>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 #include <thread>
 
@@ -61,6 +62,34 @@ std::string root_link(const XMLElement* robot) {
   return root;
 }
 
+std::string print(const tinyxml2::XMLDocument& doc) {
+  tinyxml2::XMLPrinter printer;
+  doc.Print(&printer);
+  return std::string(printer.CStr(), static_cast<std::size_t>(printer.CStrSize() - 1));
+}
+
+// A URDF whose root link is "world" (MuJoCo's world body) floats when the
+// one joint from the world becomes a floating joint, as lockstep floats it:
+// its Free root joint carries the world link, into which the fixed child
+// is fused.
+void float_world_child(XMLElement* robot, const std::string& path, std::vector<std::string>& notes) {
+  XMLElement* from_world = nullptr;
+  for (XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
+    const XMLElement* parent = j->FirstChildElement("parent");
+    const char* link = parent ? parent->Attribute("link") : nullptr;
+    if (!link || std::string(link) != "world") continue;
+    if (from_world) throw std::runtime_error(path + ": more than one joint from the link \"world\"; none floated");
+    from_world = j;
+  }
+  const char* type = from_world ? from_world->Attribute("type") : nullptr;
+  if (!type || std::string(type) != "fixed")
+    throw std::runtime_error(path + ": the root link \"world\" needs exactly one fixed joint to float");
+  from_world->SetAttribute("type", "floating");
+  const char* name = from_world->Attribute("name");
+  notes.push_back(std::string("made the fixed joint \"") + (name ? name : "") +
+                  "\" from the URDF's own link \"world\" floating (a floating joint on the world becomes a free joint)");
+}
+
 // The URDF as MuJoCo 2.2 can load it: without the mesh files it would look
 // for, with the compiler options the benchmark relies on, and, for a
 // floating base, with the root on a floating joint (MuJoCo's URDF import
@@ -96,7 +125,10 @@ std::string prepare_urdf(const MujocoScene& scene, std::vector<std::string>& not
   if (scene.floating_base) {
     const std::string root = root_link(robot);
     if (root.empty()) throw std::runtime_error(scene.urdf_path + ": no single root link to float");
-    if (root == "world") throw std::runtime_error(scene.urdf_path + ": the root link is already \"world\"");
+    if (root == "world") {
+      float_world_child(robot, scene.urdf_path, notes);
+      return print(doc);
+    }
     const char* robot_name = robot->Attribute("name");
     const std::string joint_name = std::string(robot_name ? robot_name : "robot") + "_root";
     XMLElement* world = doc.NewElement("link");
@@ -113,9 +145,7 @@ std::string prepare_urdf(const MujocoScene& scene, std::vector<std::string>& not
                     "becomes a free joint)");
   }
 
-  tinyxml2::XMLPrinter printer;
-  doc.Print(&printer);
-  return std::string(printer.CStr(), static_cast<std::size_t>(printer.CStrSize() - 1));
+  return print(doc);
 }
 
 struct ModelDeleter {
@@ -221,9 +251,10 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
   report.nq = m->nq;
   report.nv = m->nv;
   report.nbody = m->nbody - 1;  // without the world
-  report.notes.push_back("contacts disabled (mjDSBL_CONTACT), timestep " + std::to_string(scene.dt) +
-                         " s, integrator " + (m->opt.integrator == mjINT_EULER ? "Euler" : "other") +
-                         ", " + std::to_string(m->nu) + " actuators");
+  std::ostringstream options;
+  options << "contacts disabled (mjDSBL_CONTACT), timestep " << scene.dt << " s, integrator "
+          << (m->opt.integrator == mjINT_EULER ? "Euler" : "not Euler") << ", " << m->nu << " actuators";
+  report.notes.push_back(options.str());
   report.notes.push_back("PD kp (q_target - q) - kd v applied explicitly through qfrc_applied before every "
                          "mj_step, on every hinge and slide joint");
 

@@ -1,0 +1,396 @@
+// `lockstep bench`: how fast the simulation step runs, in env-steps per
+// second per core and ns per env-step, for each precision and thread count;
+// MuJoCo on the same URDF beside it when the build found MuJoCo
+// (docs/cli.md, docs/performance.md).
+#include "io/urdf_import.hpp"
+#include "tools/cli.hpp"
+#include "tools/json.hpp"
+#include "tools/step_scene.hpp"
+#ifdef LOCKSTEP_HAVE_MUJOCO
+#include "tools/mujoco_peer.hpp"
+#endif
+
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <optional>
+#include <ostream>
+#include <sstream>
+#include <thread>
+
+#ifndef LOCKSTEP_SHARED_MODELS_DIR
+#define LOCKSTEP_SHARED_MODELS_DIR ""
+#endif
+
+namespace lockstep::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct BenchConfig {
+  std::string urdf;
+  int copies = 4096;
+  std::vector<int> threads{1, 2};
+  std::vector<Precision> precisions{Precision::Float, Precision::Double};
+  int steps = 200;
+  int repeats = 5;
+  double dt = 0.002;
+  long mujoco_steps = 20000;
+  bool mujoco = true;
+  bool json = false;
+};
+
+// One timed configuration: `copies` environments advanced `steps` steps in
+// `seconds` (the median of the repeats).
+struct Row {
+  std::string engine;
+  std::string precision;
+  int threads = 1;
+  int copies = 1;
+  long steps = 0;
+  double seconds = 0.0;
+
+  double env_steps_per_s() const { return static_cast<double>(copies) * steps / seconds; }
+  double per_core() const { return env_steps_per_s() / threads; }
+  double ns_per_env_step() const { return seconds * 1e9 * threads / (static_cast<double>(copies) * steps); }
+};
+
+struct PrecisionResult {
+  Precision precision;
+  std::size_t bytes_per_copy = 0;
+  int faults = 0;
+  double max_pose_error = 0.0;
+};
+
+// The CPU's model name as Linux reports it, and its hardware threads.
+std::string machine_description() {
+  std::ifstream cpuinfo("/proc/cpuinfo");
+  std::string name = "unknown CPU";
+  for (std::string line; std::getline(cpuinfo, line);)
+    if (line.rfind("model name", 0) == 0 && line.find(':') != std::string::npos) {
+      name = line.substr(line.find(':') + 2);
+      break;
+    }
+  return name + ", " + std::to_string(std::thread::hardware_concurrency()) + " hardware threads";
+}
+
+std::string default_model() {
+  const fs::path shared = fs::path(LOCKSTEP_SHARED_MODELS_DIR) / "anymal_b.urdf";
+  std::error_code ec;
+  if (!shared.parent_path().empty() && fs::exists(shared, ec)) return shared.string();
+  return (fs::path(bundled_models_dir()) / "quadruped.urdf").string();
+}
+
+double parse_number(const std::string& option, const std::string& text) {
+  std::size_t used = 0;
+  double x = 0.0;
+  try {
+    x = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != text.size() || !std::isfinite(x)) throw UsageError(option + " expects a number, not \"" + text + "\"");
+  return x;
+}
+
+long parse_count(const std::string& option, const std::string& text) {
+  const double x = parse_number(option, text);
+  if (x < 1 || x != std::floor(x) || x > 1e9) throw UsageError(option + " expects a whole number >= 1, not \"" + text + "\"");
+  return static_cast<long>(x);
+}
+
+std::vector<std::string> split(const std::string& list) {
+  std::vector<std::string> items;
+  std::stringstream in(list);
+  for (std::string item; std::getline(in, item, ',');) items.push_back(item);
+  return items;
+}
+
+BenchConfig parse_config(const std::vector<std::string>& args) {
+  const ParsedArgs parsed = parse_args(args, {"--no-mujoco", "--json"},
+                                       {"--copies", "--threads", "--precision", "--steps", "--repeats", "--dt",
+                                        "--mujoco-steps"});
+  if (parsed.positional.size() > 1) throw UsageError("bench takes at most one MODEL.urdf");
+  BenchConfig config;
+  config.urdf = parsed.positional.empty() ? default_model() : parsed.positional[0];
+  if (const std::string* v = parsed.value("--copies")) config.copies = static_cast<int>(parse_count("--copies", *v));
+  if (const std::string* v = parsed.value("--steps")) config.steps = static_cast<int>(parse_count("--steps", *v));
+  if (const std::string* v = parsed.value("--repeats")) config.repeats = static_cast<int>(parse_count("--repeats", *v));
+  if (const std::string* v = parsed.value("--mujoco-steps")) config.mujoco_steps = parse_count("--mujoco-steps", *v);
+  if (const std::string* v = parsed.value("--dt")) {
+    config.dt = parse_number("--dt", *v);
+    if (config.dt <= 0) throw UsageError("--dt must be positive, not \"" + *v + "\"");
+  }
+  if (const std::string* v = parsed.value("--threads")) {
+    config.threads.clear();
+    for (const std::string& item : split(*v)) config.threads.push_back(static_cast<int>(parse_count("--threads", item)));
+  }
+  if (const std::string* v = parsed.value("--precision")) {
+    config.precisions.clear();
+    for (const std::string& item : split(*v)) {
+      if (item == "float") config.precisions.push_back(Precision::Float);
+      else if (item == "double") config.precisions.push_back(Precision::Double);
+      else throw UsageError("--precision must be a list of float and double, not \"" + *v + "\"");
+    }
+  }
+  if (config.threads.empty() || config.precisions.empty())
+    throw UsageError("--threads and --precision need at least one entry");
+  config.mujoco = !parsed.has("--no-mujoco");
+  config.json = parsed.has("--json");
+  return config;
+}
+
+double median(std::vector<double> values) {
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
+}
+
+// The largest |q - q_target| of copy 0 over the driven 1-DOF joints.
+double pose_error(const Model& model, const Simulator& sim, const Eigen::VectorXd& q_target) {
+  const Eigen::VectorXd q = sim.q(0);
+  double error = 0.0;
+  for (int b = 0; b < model.nbody; ++b)
+    if (model.body_joint[b] == JointType::Revolute || model.body_joint[b] == JointType::Prismatic) {
+      const int i = model.body_q_offset[b];
+      error = std::max(error, std::abs(q[i] - q_target[i]));
+    }
+  return error;
+}
+
+// Times the step for one precision at every thread count: a warm-up, then
+// `repeats` runs of `steps` steps, each from the initial state.
+PrecisionResult time_lockstep(const Model& model, const step_scene::Scene& scene, const BenchConfig& config,
+                              Precision precision, std::vector<Row>& rows, std::string& plan) {
+  StepOptions options;
+  options.dt = config.dt;
+  options.precision = precision;
+  Simulator sim = step_scene::make_simulator(model, scene, config.copies, options);
+  if (plan.empty()) plan = sim.describe_plan();
+  for (int threads : config.threads) {
+    tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+    sim.step(config.steps);
+    std::vector<double> seconds;
+    for (int r = 0; r < config.repeats; ++r) {
+      sim.set_state_all(scene.q0, scene.v0);
+      const auto start = std::chrono::steady_clock::now();
+      sim.step(config.steps);
+      seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
+    rows.push_back({"lockstep", precision_name(precision), threads, config.copies, config.steps, median(seconds)});
+  }
+  return {precision, sim.bytes_per_copy(), sim.fault_count(), pose_error(model, sim, scene.q_target)};
+}
+
+const Row* find_row(const std::vector<Row>& rows, const std::string& engine, const std::string& precision,
+                    int threads) {
+  for (const Row& row : rows)
+    if (row.engine == engine && row.precision == precision && row.threads == threads) return &row;
+  return nullptr;
+}
+
+std::string fixed(double x, int digits) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(digits) << x;
+  return s.str();
+}
+
+// Everything one run measured, for either output.
+struct BenchReport {
+  BenchConfig config;
+  std::string model_name;
+  std::string machine;
+  bool floating_base = false;
+  int nv = 0, driven_dofs = 0;
+  std::vector<Row> rows;
+  std::vector<PrecisionResult> precisions;
+  std::string plan;
+  std::string mujoco_status;  // why MuJoCo did not run; empty when it did
+  std::string mujoco_version;
+  std::vector<std::string> mujoco_notes;
+  double mujoco_pose_error = 0.0;
+};
+
+// Lockstep rows of `precision` against the engine's rows at the same thread
+// count: lockstep's speed-up (threads > 1 over 1 thread) or its ratio to MuJoCo.
+struct Comparison {
+  std::string precision;
+  int threads = 1;
+  double value = 0.0;
+};
+std::vector<Comparison> speedups(const BenchReport& report) {
+  std::vector<Comparison> out;
+  for (const PrecisionResult& p : report.precisions) {
+    const char* name = precision_name(p.precision);
+    const Row* one = find_row(report.rows, "lockstep", name, 1);
+    for (int t : report.config.threads)
+      if (const Row* row = find_row(report.rows, "lockstep", name, t); one && row && t > 1)
+        out.push_back({name, t, row->env_steps_per_s() / one->env_steps_per_s()});
+  }
+  return out;
+}
+std::vector<Comparison> mujoco_ratios(const BenchReport& report) {
+  std::vector<Comparison> out;
+  for (const PrecisionResult& p : report.precisions)
+    for (int t : report.config.threads) {
+      const Row* ours = find_row(report.rows, "lockstep", precision_name(p.precision), t);
+      const Row* theirs = find_row(report.rows, "mujoco", "double", t);
+      if (ours && theirs) out.push_back({precision_name(p.precision), t, ours->per_core() / theirs->per_core()});
+    }
+  return out;
+}
+
+void print_text(const BenchReport& r, std::ostream& out) {
+  const BenchConfig& c = r.config;
+  out << "lockstep bench: " << c.urdf << (r.floating_base ? " (floating base)" : " (fixed base)") << "\n"
+      << "scene: no contacts, gravity on, PD drives (kp " << step_scene::kDriveStiffness << " N m/rad, kd "
+      << step_scene::kDriveDamping << " N m s/rad) on " << r.driven_dofs << " of " << r.nv
+      << " DOFs holding a standing pose, dt " << c.dt << " s\n"
+      << "machine: " << r.machine << "\n"
+      << "timing: median of " << c.repeats << " repeats of " << c.steps << " steps of " << c.copies
+      << " copies";
+  if (c.mujoco) out << " (MuJoCo: " << c.mujoco_steps << " steps of one mjData per thread)";
+  out << ", after a warm-up\n\n";
+
+  std::vector<std::vector<std::string>> table = {
+      {"model", "engine", "precision", "threads", "copies", "env-steps/s", "env-steps/s/core", "ns/env-step/core"}};
+  for (const Row& row : r.rows)
+    table.push_back({r.model_name, row.engine, row.precision, std::to_string(row.threads), std::to_string(row.copies),
+                     fixed(row.env_steps_per_s() / 1e6, 3) + " M", fixed(row.per_core() / 1e6, 3) + " M",
+                     fixed(row.ns_per_env_step(), 1)});
+  std::vector<std::size_t> width(table.front().size(), 0);
+  for (const auto& line : table)
+    for (std::size_t i = 0; i < line.size(); ++i) width[i] = std::max(width[i], line[i].size());
+  for (const auto& line : table) {
+    for (std::size_t i = 0; i < line.size(); ++i)
+      out << "  " << (i < 3 ? std::left : std::right) << std::setw(static_cast<int>(width[i])) << line[i];
+    out << std::right << "\n";
+  }
+
+  out << "\n";
+  for (const Comparison& s : speedups(r))
+    out << "speed-up, " << s.precision << ", " << s.threads << " threads over 1: " << fixed(s.value, 2) << "x\n";
+  if (!r.mujoco_status.empty()) {
+    out << "MuJoCo: " << r.mujoco_status << "\n";
+  } else {
+    for (const Comparison& m : mujoco_ratios(r))
+      out << "lockstep " << m.precision << " / MuJoCo, env-steps/s per core, " << m.threads
+          << (m.threads == 1 ? " thread: " : " threads: ") << fixed(m.value, 1) << "x\n";
+    out << "MuJoCo " << r.mujoco_version << " set-up:\n";
+    for (const std::string& note : r.mujoco_notes) out << "  - " << note << "\n";
+  }
+
+  out << "\nbytes per copy (state, inputs, per-copy parameters, warm start):";
+  for (const PrecisionResult& p : r.precisions) out << " " << precision_name(p.precision) << " " << p.bytes_per_copy;
+  out << "\nafter the run, copy 0's largest |q - q_target| on the driven joints:";
+  const char* separator = " ";
+  for (const PrecisionResult& p : r.precisions) {
+    out << separator << "lockstep " << precision_name(p.precision) << " " << p.max_pose_error;
+    separator = ", ";
+  }
+  if (r.mujoco_status.empty()) out << ", MuJoCo " << r.mujoco_pose_error;
+  out << "\nfaulted copies:";
+  for (const PrecisionResult& p : r.precisions) out << " " << precision_name(p.precision) << " " << p.faults;
+  out << "\n\nstage plan:\n" << r.plan;
+  if (!r.plan.empty() && r.plan.back() != '\n') out << "\n";
+}
+
+std::string comparisons_json(const std::vector<Comparison>& list) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < list.size(); ++i)
+    s += std::string(i ? ", " : "") + "{\"precision\": " + json::quote(list[i].precision) +
+         ", \"threads\": " + std::to_string(list[i].threads) + ", \"value\": " + json::number(list[i].value) + "}";
+  return s + "]";
+}
+
+void print_json(const BenchReport& r, std::ostream& out) {
+  const BenchConfig& c = r.config;
+  out << "{\n  \"model\": " << json::quote(c.urdf) << ",\n  \"floating_base\": " << (r.floating_base ? "true" : "false")
+      << ",\n  \"machine\": " << json::quote(r.machine)
+      << ",\n  \"copies\": " << c.copies << ",\n  \"steps\": " << c.steps << ",\n  \"repeats\": " << c.repeats
+      << ",\n  \"dt\": " << json::number(c.dt) << ",\n  \"driven_dofs\": " << r.driven_dofs << ",\n  \"rows\": [";
+  for (std::size_t i = 0; i < r.rows.size(); ++i) {
+    const Row& row = r.rows[i];
+    out << (i ? "," : "") << "\n    {\"engine\": " << json::quote(row.engine) << ", \"precision\": "
+        << json::quote(row.precision) << ", \"threads\": " << row.threads << ", \"copies\": " << row.copies
+        << ", \"steps\": " << row.steps << ", \"seconds\": " << json::number(row.seconds)
+        << ", \"env_steps_per_s\": " << json::number(row.env_steps_per_s())
+        << ", \"env_steps_per_s_per_core\": " << json::number(row.per_core())
+        << ", \"ns_per_env_step\": " << json::number(row.ns_per_env_step()) << "}";
+  }
+  out << "\n  ],\n  \"speedup\": " << comparisons_json(speedups(r));
+  out << ",\n  \"mujoco\": ";
+  if (!r.mujoco_status.empty()) {
+    out << "{\"ran\": false, \"reason\": " << json::quote(r.mujoco_status) << "}";
+  } else {
+    out << "{\"ran\": true, \"version\": " << json::quote(r.mujoco_version)
+        << ", \"ratio_per_core\": " << comparisons_json(mujoco_ratios(r)) << ", \"notes\": [";
+    for (std::size_t i = 0; i < r.mujoco_notes.size(); ++i) out << (i ? ", " : "") << json::quote(r.mujoco_notes[i]);
+    out << "]}";
+  }
+  out << ",\n  \"precisions\": [";
+  for (std::size_t i = 0; i < r.precisions.size(); ++i) {
+    const PrecisionResult& p = r.precisions[i];
+    out << (i ? ", " : "") << "{\"precision\": " << json::quote(precision_name(p.precision))
+        << ", \"bytes_per_copy\": " << p.bytes_per_copy << ", \"faults\": " << p.faults
+        << ", \"max_pose_error\": " << json::number(p.max_pose_error) << "}";
+  }
+  out << "],\n  \"plan\": " << json::quote(r.plan) << "\n}\n";
+}
+
+}  // namespace
+
+int run_bench(const std::vector<std::string>& args, std::ostream& out) {
+  BenchReport report;
+  report.config = parse_config(args);
+  const BenchConfig& config = report.config;
+  const LoadedModel loaded = load_model(config.urdf, true, false);
+  const Model& model = loaded.model;
+  report.model_name = fs::path(config.urdf).stem().string();
+  report.machine = machine_description();
+  report.floating_base = loaded.floating_base;
+  report.nv = model.nv;
+  const step_scene::Scene scene = step_scene::make_scene(model);
+  report.driven_dofs = scene.driven_dofs;
+
+  for (Precision precision : config.precisions)
+    report.precisions.push_back(time_lockstep(model, scene, config, precision, report.rows, report.plan));
+
+  if (!config.mujoco) {
+    report.mujoco_status = "not run (--no-mujoco)";
+  } else {
+#ifdef LOCKSTEP_HAVE_MUJOCO
+    MujocoScene peer;
+    peer.urdf_path = config.urdf;
+    peer.dt = config.dt;
+    peer.kp = step_scene::kDriveStiffness;
+    peer.kd = step_scene::kDriveDamping;
+    peer.targets = step_scene::standing_pose(model);
+    peer.base_height = step_scene::kBaseHeight;
+    try {
+      const MujocoReport mujoco = run_mujoco_peer(peer, config.threads, config.mujoco_steps, config.repeats);
+      for (const MujocoTiming& t : mujoco.timings)
+        report.rows.push_back({"mujoco", "double", t.threads, t.threads, t.steps, t.seconds});
+      report.mujoco_version = mujoco.version;
+      report.mujoco_notes = mujoco.notes;
+      report.mujoco_pose_error = mujoco.max_pose_error;
+    } catch (const std::runtime_error& e) {
+      // The peer is a comparison: a model MuJoCo cannot load leaves lockstep's numbers standing.
+      report.mujoco_status = std::string("failed: ") + e.what();
+    }
+#else
+    report.mujoco_status = "not built (libmujoco-dev was not found when this program was configured)";
+#endif
+  }
+
+  if (config.json) print_json(report, out);
+  else print_text(report, out);
+  return kExitOk;
+}
+
+}  // namespace lockstep::cli

@@ -1,0 +1,83 @@
+// The scene the step benchmarks time (`lockstep bench`, bench/step_bench.cpp):
+// a model on its own, no contacts, gravity on, a PD drive on every DOF
+// except a floating root's, holding a standing pose, every copy starting
+// at rest in that pose. Header-only so that both programs share it without
+// a library of their own.
+#pragma once
+
+#include "batch/simulator.hpp"
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace lockstep::step_scene {
+
+inline constexpr double kDriveStiffness = 200.0;  // kp [N m/rad]
+inline constexpr double kDriveDamping = 5.0;      // kd [N m s/rad]
+inline constexpr double kBaseHeight = 0.6;        // initial z of a floating root [m]
+
+// The drive target of one URDF joint: ANYmal's standing pose by joint
+// name (hip abduction 0, front legs HFE +0.4 and KFE -0.8, hind legs
+// HFE -0.4 and KFE +0.8; a leg is front when the name's prefix before '_'
+// has an F, hind when it has an H), 0 for every other joint.
+inline double standing_target(const std::string& joint) {
+  const std::size_t underscore = joint.find('_');
+  if (underscore == std::string::npos) return 0.0;
+  const std::string leg = joint.substr(0, underscore);
+  const std::string part = joint.substr(underscore + 1);
+  const bool front = leg.find('F') != std::string::npos;
+  const bool hind = leg.find('H') != std::string::npos;
+  if (front == hind) return 0.0;
+  const double sign = front ? 1.0 : -1.0;
+  if (part == "HFE") return 0.4 * sign;
+  if (part == "KFE") return -0.8 * sign;
+  return 0.0;
+}
+
+// Drive targets of the model's 1-DOF joints, by joint name.
+inline std::vector<std::pair<std::string, double>> standing_pose(const Model& model) {
+  std::vector<std::pair<std::string, double>> pose;
+  for (int b = 0; b < model.nbody; ++b)
+    if (model.body_joint[b] == JointType::Revolute || model.body_joint[b] == JointType::Prismatic)
+      pose.emplace_back(model.joint_name[b], standing_target(model.joint_name[b]));
+  return pose;
+}
+
+struct Scene {
+  std::vector<DofSettings> dofs;  // the model's defaults plus the drives
+  Eigen::VectorXd q_target;       // (nq) the pose; a floating root at its initial pose
+  Eigen::VectorXd q0, v0;         // the initial state of every copy
+  int driven_dofs = 0;
+};
+
+inline Scene make_scene(const Model& model) {
+  Scene scene;
+  scene.dofs = default_dof_settings(model);
+  for (int d = 0; d < model.nv; ++d) {
+    if (model.body_joint[model.dof_body[d]] == JointType::Free) continue;
+    scene.dofs[d].drive_stiffness = kDriveStiffness;
+    scene.dofs[d].drive_damping = kDriveDamping;
+    ++scene.driven_dofs;
+  }
+  scene.q_target = model.neutral_configuration();
+  for (const auto& [joint, target] : standing_pose(model))
+    scene.q_target[model.body_q_offset[model.joint_index(joint)]] = target;
+  for (int b = 0; b < model.nbody; ++b)
+    if (model.body_joint[b] == JointType::Free) scene.q_target[model.body_q_offset[b] + 2] = kBaseHeight;
+  scene.q0 = scene.q_target;
+  scene.v0 = Eigen::VectorXd::Zero(model.nv);
+  return scene;
+}
+
+// A simulator of `copies` copies of the scene, each at its initial state
+// with its drive target set.
+inline Simulator make_simulator(const Model& model, const Scene& scene, int copies, const StepOptions& options) {
+  Simulator sim(model, copies, options, scene.dofs);
+  const Eigen::VectorXd v_target = Eigen::VectorXd::Zero(model.nv);
+  for (int c = 0; c < copies; ++c) sim.set_drive_target(c, scene.q_target, v_target);
+  sim.set_state_all(scene.q0, scene.v0);
+  return sim;
+}
+
+}  // namespace lockstep::step_scene
