@@ -148,7 +148,7 @@ void Simulator::make_plan() {
     const JointType type = model_->body_joint[model_->dof_body[k]];
     const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
     const bool limited = one_dof && (std::isfinite(d.lower) || std::isfinite(d.upper));
-    drives += d.drive_stiffness > 0 || d.drive_damping > 0 || per_copy_gains_;
+    drives += d.drive_stiffness > 0 || d.drive_damping > 0 || (per_copy_gains_ && type != JointType::Free);
     damping += d.damping > 0;
     springs += d.spring_stiffness > 0;
     soft += limited && d.limit_stiffness > 0;

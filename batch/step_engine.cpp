@@ -65,14 +65,21 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     const int q_index = model.body_q_offset[body] + (k - model.body_dof_offset[body]);
     row_specs_.push_back({kind, k, q_index, column_of[k], static_cast<T>(a), static_cast<T>(b)});
   };
+  // A row stage forced On gets a row on every DOF it can act on, even where
+  // the scene gives it nothing to do (infinite limits, zero friction): such
+  // rows never push, and cost what the stage costs.
+  auto forced = [&](Stage stage) { return options.stages[static_cast<int>(stage)] == StageMode::On; };
   for (int k = 0; k < nv; ++k) {
     const DofSettings& d = dofs[k];
     const JointType type = model.body_joint[model.dof_body[k]];
     const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
-    if (plan.hard_limits && one_dof && d.limit_stiffness == 0.0 && (std::isfinite(d.lower) || std::isfinite(d.upper)))
+    const bool limited = std::isfinite(d.lower) || std::isfinite(d.upper);
+    if (plan.hard_limits && one_dof && d.limit_stiffness == 0.0 && (limited || forced(Stage::HardLimits)))
       add_row(JointRowKind::PositionLimit, k, d.lower, d.upper);
-    if (plan.velocity_limits && std::isfinite(d.velocity_limit)) add_row(JointRowKind::VelocityLimit, k, d.velocity_limit, 0);
-    if (plan.coulomb_friction && d.friction_model == FrictionModel::Coulomb && d.friction > 0.0)
+    if (plan.velocity_limits && (std::isfinite(d.velocity_limit) || forced(Stage::VelocityLimits)))
+      add_row(JointRowKind::VelocityLimit, k, d.velocity_limit, 0);
+    if (plan.coulomb_friction && d.friction_model == FrictionModel::Coulomb &&
+        (d.friction > 0.0 || forced(Stage::CoulombFriction)))
       add_row(JointRowKind::Friction, k, d.friction, 0);
   }
   batch_.impulse = BatchArray<T>(copies, static_cast<int>(row_specs_.size()), kWidth);

@@ -67,11 +67,8 @@ inline L stribeck_friction(const L& v, const L& coulomb, const L& extra, const L
   const L peak = coulomb + extra;
   const L ramp = peak * speed / falloff;
   const L x = (speed - falloff) / lane::max(stribeck_v, L(T(1e-30)));
-  // exp(-x^2) by its value at x^2 clamped to [0, 80] (exp(-80) ~ 2e-35 is zero here).
-  const L x2 = lane::min(x * x, L(T(80)));
-  L decay;
-  if constexpr (lane::is_scalar_v<L>) decay = std::exp(-x2);
-  else decay = xsimd::exp(-x2);
+  // exp(-x^2) with x^2 clamped to [0, 80] (exp(-80) ~ 2e-35 is zero here)
+  const L decay = lane::exp(-lane::min(x * x, L(T(80))));
   const L sliding = lane::fmadd(extra, lane::select(stribeck_v > L(T(0)), decay, L(T(0))), coulomb);
   const L magnitude = lane::select(speed < falloff, ramp, sliding);
   return lane::select(v > L(T(0)), -magnitude, lane::select(v < L(T(0)), magnitude, L(T(0))));

@@ -95,14 +95,16 @@ inline L abs(const L& x) {
   if constexpr (is_scalar_v<L>) return std::fabs(x);
   else return xsimd::abs(x);
 }
+// min and max as the x86 instructions define them, also for NaN: the
+// second operand unless the comparison holds (so both lane types agree).
 template <class L>
 inline L min(const L& a, const L& b) {
-  if constexpr (is_scalar_v<L>) return b < a ? b : a;
+  if constexpr (is_scalar_v<L>) return a < b ? a : b;
   else return xsimd::min(a, b);
 }
 template <class L>
 inline L max(const L& a, const L& b) {
-  if constexpr (is_scalar_v<L>) return a < b ? b : a;
+  if constexpr (is_scalar_v<L>) return a > b ? a : b;
   else return xsimd::max(a, b);
 }
 // Round to the nearest integer, ties to even (the current rounding mode).
@@ -141,6 +143,34 @@ inline bool any(const mask_t<L>& m) {
 template <class L>
 inline L clamp(const L& x, const L& lo, const L& hi) {
   return min(max(x, lo), hi);
+}
+
+// e^x for x in about [-87, 88] (float) or [-708, 709] (double), to about
+// 1 ulp: x = n ln2 + r with |r| <= ln2/2 (Cody-Waite), e^r by a polynomial
+// (Cephes' expf minimax for float, the Taylor series to r^13 for double,
+// whose remainder is below 1e-17), then an exact scaling by 2^n.
+template <class L>
+inline L exp(const L& x) {
+  using T = scalar_t<L>;
+  const L n = round_even(x * L(T(1.44269504088896340736)));  // x / ln 2
+  L r, p;
+  if constexpr (std::is_same_v<T, float>) {
+    r = fnmadd(n, L(0.693359375f), x);
+    r = fnmadd(n, L(-2.12194440e-4f), r);
+    p = fmadd(fmadd(fmadd(fmadd(fmadd(L(1.9875691500e-4f), r, L(1.3981999507e-3f)), r, L(8.3334519073e-3f)), r,
+                            L(4.1665795894e-2f)), r, L(1.6666665459e-1f)), r, L(5.0000001201e-1f));
+    p = fmadd(p, r * r, r + L(1.0f));
+  } else {
+    r = fnmadd(n, L(6.93145751953125e-1), x);
+    r = fnmadd(n, L(1.42860682030941723212e-6), r);
+    p = L(1.0 / 6227020800.0);  // 1/13!
+    const double inverse_factorials[13] = {1.0 / 479001600.0, 1.0 / 39916800.0, 1.0 / 3628800.0, 1.0 / 362880.0,
+                                           1.0 / 40320.0, 1.0 / 5040.0, 1.0 / 720.0, 1.0 / 120.0, 1.0 / 24.0,
+                                           1.0 / 6.0, 0.5, 1.0, 1.0};
+    for (double c : inverse_factorials) p = fmadd(p, r, L(c));
+  }
+  if constexpr (is_scalar_v<L>) return std::ldexp(p, static_cast<int>(n));
+  else return xsimd::ldexp(p, xsimd::to_int(n));
 }
 
 // sin and cos of x together, to about 1 ulp for |x| < 1e4 (joint angles;

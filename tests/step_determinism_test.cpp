@@ -152,11 +152,10 @@ TEST_P(StepDeterminism, SimdLanesMatchScalarReference) {
 
 INSTANTIATE_TEST_SUITE_P(, StepDeterminism, ::testing::ValuesIn(all_cases()), case_name);
 
-// The same with the implicit joint effects of the ABA stage: springs and
-// spring-damper limits (on every other leg DOF, hard limits on the rest),
-// on anymal_b. Stribeck friction is not in it: its exp is std::exp on the
-// scalar lane and xsimd::exp on SIMD lanes, which differ by an ulp for some
-// arguments, so that stage is not bit-identical across lanes.
+// The same with the joint effects of the ABA stage: springs, spring-damper
+// limits (on every other leg DOF, hard limits on the rest) and Stribeck
+// friction (every third leg DOF, whose exp is lane::exp, the same code on
+// both lane types), on anymal_b.
 TEST(StepDeterminismImplicitTerms, SimdLanesMatchScalarReference) {
   const Model model = test::load_shared_model("anymal_b", true);
   std::vector<DofSettings> dofs = test::limited_dofs(model, 0.3, 6.0);
@@ -166,6 +165,10 @@ TEST(StepDeterminismImplicitTerms, SimdLanesMatchScalarReference) {
     d.spring_stiffness = 4.0;
     d.spring_rest = 0.1;
     if (leg % 2 == 0) d.limit_stiffness = 400.0, d.limit_damping = 4.0;
+    if (leg % 3 == 0) {
+      d.friction_model = FrictionModel::Stribeck;
+      d.friction = 0.1, d.stiction_extra = 1.0, d.stribeck_velocity = 0.5;
+    }
     ++leg;
   }
   const std::vector<unsigned> seeds = test::seed_range(37, 2000u);
@@ -175,7 +178,8 @@ TEST(StepDeterminismImplicitTerms, SimdLanesMatchScalarReference) {
       StepOptions o = test::scene_options(precision, SolverType::PGS);
       o.lanes = lanes;
       Simulator sim = test::simulator_with_inputs(model, dofs, o, seeds);
-      for (Stage stage : {Stage::Springs, Stage::SoftLimits, Stage::HardLimits, Stage::CoulombFriction})
+      for (Stage stage :
+           {Stage::Springs, Stage::SoftLimits, Stage::StribeckFriction, Stage::HardLimits, Stage::CoulombFriction})
         EXPECT_TRUE(sim.plan()[static_cast<int>(stage)].runs) << stage_name(stage);
       sim.step(kSteps);
       runs.push_back(std::move(sim));
