@@ -46,7 +46,7 @@ void build_joint_rows(const KernelModel<lane::scalar_t<L>>& km, const std::vecto
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const T inf = std::numeric_limits<T>::infinity();
-  const L one(T(1)), zero(T(0)), step(dt);
+  const L one(T(1)), zero(T(0)), inv_step(T(1) / dt);
   RowBlock<L>& rows = s.rows;
   for (int r = 0; r < rows.m; ++r) {
     const JointRowSpec<T>& spec = specs[r];
@@ -58,7 +58,7 @@ void build_joint_rows(const KernelModel<lane::scalar_t<L>>& km, const std::vecto
         const auto lower_nearer = to_lower < to_upper;
         s.sigma[r] = lane::select(lower_nearer, one, -one);
         rows.error[r] = lane::select(lower_nearer, to_lower, to_upper);
-        rows.target[r] = positional_target(rows.error[r], step, step, L(erp));
+        rows.target[r] = positional_target(rows.error[r], inv_step, L(erp / dt));
         rows.lo[r] = zero;
         rows.hi[r] = L(inf);
         rows.positional[r] = 1;

@@ -42,12 +42,13 @@ struct RowBlock {
 };
 
 // The target of a positional row with error e over a time h: speculative
-// when separated (the row may close the gap exactly, never cross it), a
-// share `erp` of the violation per step when violated.
+// when separated (the row may close the gap exactly, never cross it: -e/h),
+// a share erp of the violation per step when violated (-erp e / step).
+// Takes 1/h and erp/step, so no lane divides.
 template <class L>
-inline L positional_target(const L& e, const L& h, const L& step, const L& erp) {
+inline L positional_target(const L& e, const L& inv_h, const L& erp_per_step) {
   using T = lane::scalar_t<L>;
-  return lane::select(e >= L(T(0)), -e / h, -erp * e / step);
+  return lane::select(e >= L(T(0)), -e * inv_h, -erp_per_step * e);
 }
 
 // Per lane: true where every row is satisfied with all impulses zero, so
@@ -97,14 +98,14 @@ template <class L>
 void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
   using T = lane::scalar_t<L>;
   const int m = rows.m;
-  const L h(dt / T(substeps)), step(dt), e_rate(erp);
+  const L h(dt / T(substeps)), inv_h(T(substeps) / dt), erp_per_step(erp / dt);
   for (int r = 0; r < m; ++r) {
     rows.displacement[r] = L(T(0));
     rows.lambda_sum[r] = L(T(0));
   }
   for (int k = 0; k < substeps; ++k) {
     for (int r = 0; r < m; ++r)
-      if (rows.positional[r]) rows.target[r] = positional_target(rows.error[r] + rows.displacement[r], h, step, e_rate);
+      if (rows.positional[r]) rows.target[r] = positional_target(rows.error[r] + rows.displacement[r], inv_h, erp_per_step);
     gauss_seidel_sweep(rows);
     for (int r = 0; r < m; ++r) {
       L v = rows.v_free[r];

@@ -55,7 +55,7 @@ TEST(RowSolver, TgsAndPgsCloseAGapExactly) {
     rows.v_free = {-10.0};
     rows.error = {0.05};
     rows.positional[0] = 1;
-    rows.target = {positional_target(0.05, 0.01, 0.01, 0.2)};
+    rows.target = {positional_target(0.05, 1.0 / 0.01, 0.2 / 0.01)};
     rows.lo = {0.0};
     rows.hi = {kInf};
     rows.lambda = {0.0};
