@@ -168,18 +168,23 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   } else {
     free_acceleration(q, v, h, in, tau_ff, terms_in, s);
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(h), s.qacc[k], s.u0[k]);
+    const bool trapezoid = options_.integrator == Integrator::Trapezoid;
+    if (trapezoid) heun_velocity(in, tau_ff, terms_in, q, h, s);
     const bool tgs = options_.solver == SolverType::TGS;
+    s.rows_at_rest = lane::mask_t<L>(true);
     if (!row_specs_.empty()) solve_rows(block, q, h, s);
     else if (tgs)
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
     // positions: TGS by its substep displacement; otherwise by the
-    // integrator's velocity (semi-implicit Euler v1, trapezoid (v0 + v1)/2)
+    // integrator's velocity: semi-implicit Euler v1; trapezoid (v0 + v1)/2,
+    // except in copies whose rows act this step, which move with v1 so that
+    // the speculative limit rows hold exactly.
     T* velocity = fields(s.qacc);  // free again: reused as the position velocity
     T step = h;
     for (int k = 0; k < nv; ++k) {
       L u = s.u1[k];
       if (tgs) u = s.displacement[k];
-      else if (options_.integrator == Integrator::Trapezoid) u = L(T(0.5)) * (s.u0[k] + s.u1[k]);
+      else if (trapezoid) u = lane::select(s.rows_at_rest, L(T(0.5)) * (s.u0[k] + s.u1[k]), s.u1[k]);
       lane::store(u, velocity + k * W);
     }
     if (tgs) step = T(1);
@@ -213,6 +218,28 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
     for (int i = 0; i < nq; ++i) lane::store(lane::load<L>(q_next + i * W), q + i * W);
     for (int k = 0; k < nv; ++k) lane::store(s.u1[k], v + k * W);
   }
+}
+
+// The trapezoidal rule's velocity, explicit (Heun): the acceleration a1 at
+// (q0, v0) is in s.qacc and v0 + h a1 in s.u1; a2 at the Euler predictor
+// (q0 (+) h v0, v0 + h a1) joins it, v1 = v0 + h (a1 + a2) / 2. With
+// positions moved by (v0 + v1) / 2 the step is second order.
+template <class L>
+void StepEngine<L>::heun_velocity(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in,
+                                  const T* q0, T h, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km_.nv;
+  T* a1 = fields(s.a_sum);
+  T* q_predicted = fields(s.q_stage);
+  T* v_predicted = fields(s.v_stage);
+  for (int k = 0; k < nv; ++k) {
+    lane::store(s.qacc[k], a1 + k * W);
+    lane::store(s.u1[k], v_predicted + k * W);
+  }
+  integrate<L>(km_, q0, terms_in.v, h, q_predicted);
+  free_acceleration(q_predicted, v_predicted, h, in, tau_ff, terms_in, s);
+  const L half_h(T(0.5) * h);
+  for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(half_h, lane::load<L>(a1 + k * W) + s.qacc[k], s.u0[k]);
 }
 
 // Classic RK4 on (q, v) with the joint effects evaluated at every stage
@@ -266,6 +293,7 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
   // exactly; a block where all lanes are so skips the solver (the same
   // result, bit for bit, as solving).
   const lane::mask_t<L> rest = rows_at_rest(rows);
+  s.rows_at_rest = rest;
   T* impulse = batch_.impulse.block(block);
   const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
   for (int r = 0; r < rows.m; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));

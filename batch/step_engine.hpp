@@ -55,6 +55,7 @@ class StepEngine final : public Simulator::Engine {
     JointTermScratch<L> terms;
     JointRowScratch<L> rows;
     std::vector<L> u0, u1, u_free, qacc, displacement;  // (nv)
+    lane::mask_t<L> rows_at_rest{true};         // lanes where no solver row acts this step
     // [field][lane] arrays, as lanes for their alignment; read through fields()
     std::vector<L> q_next;          // (nq) the step's new positions
     std::vector<L> q_stage, v_stage;  // RK4 stage state
@@ -70,6 +71,9 @@ class StepEngine final : public Simulator::Engine {
   // RK4 for scenes without rows: v1 in s.u1, q1 written to q_out.
   void rk4_block(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in, const T* q0, T h,
                  T* q_out, Scratch& s);
+  // Trapezoid: s.u1 from v0 + h a1 to the average of two accelerations.
+  void heun_velocity(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in, const T* q0, T h,
+                     Scratch& s);
   // Solver rows: s.u1 from s.u1 (= u*), and the displacement for TGS.
   void solve_rows(int block, const T* q, T h, Scratch& s);
   void record_applied(int block, T h, Scratch& s);

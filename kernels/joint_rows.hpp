@@ -1,6 +1,6 @@
 // Joint-space solver rows: hard position limits, velocity limits and Coulomb
 // joint friction. Each acts on one DOF k with the Jacobian J = sigma e_k,
-// sigma = +-1 per lane (which limit is nearer, which way the joint moves),
+// sigma = +-1 per lane (which limit the joint heads for; +1 for the others),
 // so D = J Mt^-1 J^T is read off the columns Mt^-1 e_k, computed once per
 // distinct DOF from the tree-sparse factorisation of Mt = M + diag(w).
 #pragma once
@@ -11,8 +11,8 @@
 namespace lockstep {
 
 enum class JointRowKind : unsigned char {
-  PositionLimit,  // sigma v >= -e/dt (speculative) with lambda >= 0; e: distance to the nearer limit
-  VelocityLimit,  // sigma v <= v_max with lambda <= 0; sigma the sign of v_free
+  PositionLimit,  // sigma v >= -e/dt (speculative) with lambda >= 0; e: distance to the limit the joint heads for
+  VelocityLimit,  // -v_max <= v <= v_max, lambda free (a band row)
   Friction,       // v = 0 with |lambda| <= friction dt
 };
 
@@ -53,28 +53,33 @@ void build_joint_rows(const KernelModel<lane::scalar_t<L>>& km, const std::vecto
     const L u = v_free[spec.dof];
     switch (spec.kind) {
       case JointRowKind::PositionLimit: {
+        // the limit nearer to where the free motion ends the step: a fast
+        // joint heading for the far limit of a narrow range meets that one
         const L qk = lane::load<L>(q + spec.q_index * W);
-        const L to_lower = qk - L(spec.a), to_upper = L(spec.b) - qk;
-        const auto lower_nearer = to_lower < to_upper;
-        s.sigma[r] = lane::select(lower_nearer, one, -one);
-        rows.error[r] = lane::select(lower_nearer, to_lower, to_upper);
+        const L q_free = lane::fmadd(L(dt), u, qk);
+        const auto lower = q_free - L(spec.a) < L(spec.b) - q_free;
+        s.sigma[r] = lane::select(lower, one, -one);
+        rows.error[r] = lane::select(lower, qk - L(spec.a), L(spec.b) - qk);
         rows.target[r] = positional_target(rows.error[r], inv_step, L(erp / dt));
+        rows.target_hi[r] = rows.target[r];
         rows.lo[r] = zero;
         rows.hi[r] = L(inf);
         rows.positional[r] = 1;
         break;
       }
       case JointRowKind::VelocityLimit:
-        s.sigma[r] = lane::select(u < zero, -one, one);
+        s.sigma[r] = one;
         rows.error[r] = zero;
-        rows.target[r] = L(spec.a);
+        rows.target[r] = L(-spec.a);
+        rows.target_hi[r] = L(spec.a);
         rows.lo[r] = L(-inf);
-        rows.hi[r] = zero;
+        rows.hi[r] = L(inf);
         break;
       case JointRowKind::Friction:
         s.sigma[r] = one;
         rows.error[r] = zero;
         rows.target[r] = zero;
+        rows.target_hi[r] = zero;
         rows.hi[r] = L(spec.a * dt);
         rows.lo[r] = -rows.hi[r];
         break;

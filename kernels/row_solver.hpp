@@ -1,11 +1,14 @@
 // The velocity-level constraint solver over one block: rows r with impulses
 // lambda_r in [lo_r, hi_r], coupled through the Delassus matrix
-// D = J Mt^-1 J^T (Mt: the mass matrix plus the implicit diagonal), solve
-//   v = v_free + D lambda,   each row: v_r >= target_r where lambda_r > lo_r,
-//                                      v_r <= target_r where lambda_r < hi_r,
-// (a projected linear complementarity problem) by projected Gauss-Seidel or
-// by TGS (PhysX's temporal Gauss-Seidel: the step split into substeps, the
-// position error of positional rows advanced between them).
+// D = J Mt^-1 J^T (Mt: the mass matrix plus the implicit diagonal). Each row
+// wants its velocity in a band [target_r, target_hi_r] (an equality when the
+// two are equal):
+//   v = v_free + D lambda,   lambda_r > 0 only where v_r = target_r,
+//                            lambda_r < 0 only where v_r = target_hi_r,
+// and the box [lo_r, hi_r] bounds lambda_r (one-sided rows: [0, inf)). A
+// projected linear complementarity problem, solved by projected
+// Gauss-Seidel or by TGS (PhysX's temporal Gauss-Seidel: the step split into
+// substeps, the position error of positional rows advanced between them).
 //
 // The solver knows rows only through D, v_free, target and the bounds: joint
 // limits, velocity limits and joint friction are its first row types;
@@ -30,7 +33,7 @@ struct RowBlock {
   std::vector<unsigned char> positional;  // (m) 1: target follows a position error (TGS re-evaluates it)
   std::vector<L> D;            // (m x m) Delassus matrix
   std::vector<L> v_free;       // (m) row velocity before the solve
-  std::vector<L> target, lo, hi;
+  std::vector<L> target, target_hi, lo, hi;  // (m) velocity band and impulse box
   std::vector<L> error;        // (m) position error of positional rows (>= 0: separated)
   std::vector<L> lambda;       // (m) impulses: warm start in, solution out
   std::vector<L> lambda_sum;   // (m) TGS: sum over substeps of h lambda (the position-level impulse)
@@ -38,7 +41,7 @@ struct RowBlock {
 
   explicit RowBlock(int rows)
       : m(rows), bound_row(rows, -1), mu(rows), positional(rows, 0), D(rows * rows), v_free(rows), target(rows),
-        lo(rows), hi(rows), error(rows), lambda(rows), lambda_sum(rows), displacement(rows) {}
+        target_hi(rows), lo(rows), hi(rows), error(rows), lambda(rows), lambda_sum(rows), displacement(rows) {}
 };
 
 // The target of a positional row with error e over a time h: speculative
@@ -51,6 +54,16 @@ inline L positional_target(const L& e, const L& inv_h, const L& erp_per_step) {
   return lane::select(e >= L(T(0)), -e * inv_h, -erp_per_step * e);
 }
 
+// The impulse change that puts a row's velocity v back in its band,
+// before the box: (target - v)/D if below, (target_hi - v)/D if above, else
+// none.
+template <class L>
+inline L band_step(const L& lambda, const L& v, const L& target, const L& target_hi, const L& inv_d) {
+  using T = lane::scalar_t<L>;
+  const L up = lambda + (target - v) * inv_d, down = lambda + (target_hi - v) * inv_d;
+  return lane::select(up > L(T(0)), up, lane::select(down < L(T(0)), down, L(T(0))));
+}
+
 // Per lane: true where every row is satisfied with all impulses zero, so
 // zero is the exact solution there.
 template <class L>
@@ -60,7 +73,8 @@ inline lane::mask_t<L> rows_at_rest(const RowBlock<L>& rows) {
   for (int r = 0; r < rows.m; ++r) {
     const L lo = rows.bound_row[r] >= 0 ? L(T(0)) : rows.lo[r];
     const L hi = rows.bound_row[r] >= 0 ? L(T(0)) : rows.hi[r];
-    const L push = lane::clamp(rows.target[r] - rows.v_free[r], lo, hi);
+    const L zero(T(0)), one(T(1));
+    const L push = lane::clamp(band_step(zero, rows.v_free[r], rows.target[r], rows.target_hi[r], one), lo, hi);
     rest = rest && (push == L(T(0)));
     if (rows.positional[r]) rest = rest && (rows.error[r] >= L(T(0)));
   }
@@ -80,7 +94,8 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows) {
       hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
       lo = -hi;
     }
-    rows.lambda[r] = lane::clamp(rows.lambda[r] + (rows.target[r] - v) / Dr[r], lo, hi);
+    const L inv_d = L(lane::scalar_t<L>(1)) / Dr[r];
+    rows.lambda[r] = lane::clamp(band_step(rows.lambda[r], v, rows.target[r], rows.target_hi[r], inv_d), lo, hi);
   }
 }
 
@@ -105,7 +120,8 @@ void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, lane::scal
   }
   for (int k = 0; k < substeps; ++k) {
     for (int r = 0; r < m; ++r)
-      if (rows.positional[r]) rows.target[r] = positional_target(rows.error[r] + rows.displacement[r], inv_h, erp_per_step);
+      if (rows.positional[r])
+        rows.target[r] = rows.target_hi[r] = positional_target(rows.error[r] + rows.displacement[r], inv_h, erp_per_step);
     gauss_seidel_sweep(rows);
     for (int r = 0; r < m; ++r) {
       L v = rows.v_free[r];

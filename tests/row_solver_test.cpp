@@ -19,6 +19,7 @@ RowBlock<double> cone_problem() {
   rows.D = {2.0, 0.5, 0.5, 1.0};
   rows.v_free = {-1.0, 3.0};
   rows.target = {1.0, 0.0};
+  rows.target_hi = rows.target;
   rows.lo = {0.0, -kInf};
   rows.hi = {kInf, kInf};
   rows.bound_row[1] = 0;
@@ -56,6 +57,7 @@ TEST(RowSolver, TgsAndPgsCloseAGapExactly) {
     rows.error = {0.05};
     rows.positional[0] = 1;
     rows.target = {positional_target(0.05, 1.0 / 0.01, 0.2 / 0.01)};
+    rows.target_hi = rows.target;
     rows.lo = {0.0};
     rows.hi = {kInf};
     rows.lambda = {0.0};
@@ -67,6 +69,26 @@ TEST(RowSolver, TgsAndPgsCloseAGapExactly) {
       pgs_solve(rows, 1);
       EXPECT_NEAR(-10.0 + 0.5 * rows.lambda[0], -5.0, 1e-12);  // v = -e/dt
     }
+  }
+}
+
+// A band row (a velocity limit, |v| <= 1) next to a row that pushes its
+// joint: the band holds from either side, whichever way the free motion goes.
+TEST(RowSolver, BandRowHoldsBothSides) {
+  for (double push : {-4.0, 4.0}) {
+    RowBlock<double> rows(2);
+    rows.D = {1.0, 0.5, 0.5, 1.0};
+    rows.v_free = {0.0, 0.2};
+    rows.target = {push, -1.0};  // row 0: an equality pushing to v0 = push, dragging row 1 along
+    rows.target_hi = {push, 1.0};
+    rows.lo = {-kInf, -kInf};
+    rows.hi = {kInf, kInf};
+    rows.lambda = {0.0, 0.0};
+    pgs_solve(rows, 100);
+    const double v0 = rows.v_free[0] + rows.D[0] * rows.lambda[0] + rows.D[1] * rows.lambda[1];
+    const double v1 = rows.v_free[1] + rows.D[2] * rows.lambda[0] + rows.D[3] * rows.lambda[1];
+    EXPECT_NEAR(v0, push, 1e-12);
+    EXPECT_NEAR(v1, push > 0 ? 1.0 : -1.0, 1e-12) << "push " << push;
   }
 }
 

@@ -122,6 +122,45 @@ TEST(Simulator, VelocityLimitBoundsSpeed) {
   EXPECT_NEAR(sim.v(0)[0], -2.0, 1e-9);
 }
 
+// The velocity limit holds both ways, also when another row (here a
+// position limit on the first joint) drives the joint against its free
+// motion: the band row -v_max <= v <= v_max.
+TEST(Simulator, VelocityLimitHoldsWhenAnotherRowReversesTheJoint) {
+  const Model model = test::rod_chain({1.0, 1.0}, 1.0);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  dofs[0].upper = 0.1;
+  dofs[1].velocity_limit = 1.0;
+  for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
+    StepOptions o = double_options(0.002);
+    o.solver = solver;
+    o.iterations = 64;
+    Simulator sim(model, 1, o, dofs);
+    sim.set_gravity(0, Eigen::Vector3d::Zero());
+    sim.set_state(0, Eigen::VectorXd::Zero(2), Eigen::Vector2d(5.0, -0.05));
+    for (int i = 0; i < 20; ++i) {
+      sim.step();
+      EXPECT_LE(std::abs(sim.v(0)[1]), 1.0 + 1e-6) << solver_name(solver) << " step " << i;
+    }
+  }
+}
+
+// A joint fast enough to cross a narrow range in one step meets the limit
+// it heads for, not the one its position is nearer to.
+TEST(Simulator, FastJointStopsAtTheFarLimitOfANarrowRange) {
+  const Model model = spinner(0.1, -0.05, 0.05);
+  for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
+    StepOptions o = double_options(0.002);
+    o.solver = solver;
+    Simulator sim(model, 1, o);
+    sim.set_state(0, Eigen::VectorXd::Constant(1, 0.04), Eigen::VectorXd::Constant(1, -100.0));
+    sim.step();  // closes the 0.09 rad gap exactly: v = -0.09 / dt
+    EXPECT_NEAR(sim.q(0)[0], -0.05, 1e-9) << solver_name(solver);
+    sim.step();  // then rests on the limit
+    EXPECT_NEAR(sim.q(0)[0], -0.05, 1e-9) << solver_name(solver);
+    EXPECT_NEAR(sim.v(0)[0], 0.0, 1e-9) << solver_name(solver);
+  }
+}
+
 // A spring-damper limit lets the joint in past the limit and pushes back:
 // at rest against a constant torque tau the overshoot is tau / k.
 TEST(Simulator, SoftLimitSettlesAtForceBalance) {
