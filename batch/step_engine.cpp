@@ -288,16 +288,16 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
   RowBlock<L>& rows = rs.rows;
   const T erp = static_cast<T>(options_.error_reduction);
   const bool tgs = options_.solver == SolverType::TGS;
-  build_joint_rows<L>(km_, row_specs_, q, s.u1.data(), h, erp, rs);
-  // Lanes where no row needs an impulse start from zero and keep it
-  // exactly; a block where all lanes are so skips the solver (the same
-  // result, bit for bit, as solving).
-  const lane::mask_t<L> rest = rows_at_rest(rows);
+  // Lanes where no row needs an impulse keep a zero impulse exactly; a
+  // block where all lanes are so skips the rows (the same result, bit for
+  // bit, as solving).
+  const lane::mask_t<L> rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), h, erp);
   s.rows_at_rest = rest;
   T* impulse = batch_.impulse.block(block);
   const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
-  for (int r = 0; r < rows.m; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
   if (!lane::all<L>(rest)) {
+    build_joint_rows<L>(row_specs_, q, s.u1.data(), h, erp, rs);
+    for (int r = 0; r < rows.m; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
     joint_row_delassus<L>(km_, row_specs_, column_dof_, batch_.state.inertia.block(block),
                           s.terms.implicit_diagonal.data(), s.ws, rs);
     if (tgs) tgs_solve(rows, options_.iterations, h, erp);
@@ -310,10 +310,12 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
       add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
       for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
     }
-  } else if (tgs) {
-    for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
+    for (int r = 0; r < rows.m; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);
+  } else {
+    for (int r = 0; r < rows.m; ++r) lane::store(zero, impulse + r * W);
+    if (tgs)
+      for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
   }
-  for (int r = 0; r < rows.m; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);
 }
 
 // RaiSim's torque over the step by source, with dv = v1 - v0:

@@ -37,54 +37,80 @@ struct JointRowScratch {
   }
 };
 
-// Rows' signs, targets, bounds and free velocities from q and the free
-// velocity u* of one block; dt is the (sub)step.
+// One joint row of one block, per lane, from q and the free velocity u*.
 template <class L>
-void build_joint_rows(const KernelModel<lane::scalar_t<L>>& km, const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
-                      const lane::scalar_t<L>* q, const L* v_free, lane::scalar_t<L> dt, lane::scalar_t<L> erp,
-                      JointRowScratch<L>& s) {
+struct JointRow {
+  L sigma, error, target, target_hi, lo, hi, v_free;
+  bool positional;
+};
+
+// dt is the (sub)step.
+template <class L>
+inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const lane::scalar_t<L>* q, const L* v_free,
+                             lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const T inf = std::numeric_limits<T>::infinity();
-  const L one(T(1)), zero(T(0)), inv_step(T(1) / dt);
+  const L one(T(1)), zero(T(0));
+  const L u = v_free[spec.dof];
+  JointRow<L> row{one, zero, zero, zero, L(-inf), L(inf), u, false};
+  switch (spec.kind) {
+    case JointRowKind::PositionLimit: {
+      // the limit nearer to where the free motion ends the step: a fast
+      // joint heading for the far limit of a narrow range meets that one
+      const L qk = lane::load<L>(q + spec.q_index * W);
+      const L q_free = lane::fmadd(L(dt), u, qk);
+      const auto lower = q_free - L(spec.a) < L(spec.b) - q_free;
+      row.sigma = lane::select(lower, one, -one);
+      row.error = lane::select(lower, qk - L(spec.a), L(spec.b) - qk);
+      row.target = row.target_hi = positional_target(row.error, L(T(1) / dt), L(erp / dt));
+      row.lo = zero;
+      row.positional = true;
+      break;
+    }
+    case JointRowKind::VelocityLimit:
+      row.target = L(-spec.a);
+      row.target_hi = L(spec.a);
+      break;
+    case JointRowKind::Friction:
+      row.hi = L(spec.a * dt);
+      row.lo = -row.hi;
+      break;
+  }
+  row.v_free = row.sigma * u;
+  return row;
+}
+
+// Per lane: true where no joint row needs an impulse. The same test as
+// rows_at_rest on the built rows, without building them: a block where it
+// holds in every lane skips the rows altogether.
+template <class L>
+lane::mask_t<L> joint_rows_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
+                                   const lane::scalar_t<L>* q, const L* v_free, lane::scalar_t<L> dt,
+                                   lane::scalar_t<L> erp) {
+  lane::mask_t<L> rest(true);
+  for (const JointRowSpec<lane::scalar_t<L>>& spec : specs) {
+    const JointRow<L> row = joint_row<L>(spec, q, v_free, dt, erp);
+    rest = rest && row_at_rest(row.v_free, row.target, row.target_hi, row.lo, row.hi, row.error, row.positional);
+  }
+  return rest;
+}
+
+// Stores the rows of one block for the solver.
+template <class L>
+void build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const lane::scalar_t<L>* q,
+                      const L* v_free, lane::scalar_t<L> dt, lane::scalar_t<L> erp, JointRowScratch<L>& s) {
   RowBlock<L>& rows = s.rows;
   for (int r = 0; r < rows.m; ++r) {
-    const JointRowSpec<T>& spec = specs[r];
-    const L u = v_free[spec.dof];
-    switch (spec.kind) {
-      case JointRowKind::PositionLimit: {
-        // the limit nearer to where the free motion ends the step: a fast
-        // joint heading for the far limit of a narrow range meets that one
-        const L qk = lane::load<L>(q + spec.q_index * W);
-        const L q_free = lane::fmadd(L(dt), u, qk);
-        const auto lower = q_free - L(spec.a) < L(spec.b) - q_free;
-        s.sigma[r] = lane::select(lower, one, -one);
-        rows.error[r] = lane::select(lower, qk - L(spec.a), L(spec.b) - qk);
-        rows.target[r] = positional_target(rows.error[r], inv_step, L(erp / dt));
-        rows.target_hi[r] = rows.target[r];
-        rows.lo[r] = zero;
-        rows.hi[r] = L(inf);
-        rows.positional[r] = 1;
-        break;
-      }
-      case JointRowKind::VelocityLimit:
-        s.sigma[r] = one;
-        rows.error[r] = zero;
-        rows.target[r] = L(-spec.a);
-        rows.target_hi[r] = L(spec.a);
-        rows.lo[r] = L(-inf);
-        rows.hi[r] = L(inf);
-        break;
-      case JointRowKind::Friction:
-        s.sigma[r] = one;
-        rows.error[r] = zero;
-        rows.target[r] = zero;
-        rows.target_hi[r] = zero;
-        rows.hi[r] = L(spec.a * dt);
-        rows.lo[r] = -rows.hi[r];
-        break;
-    }
-    rows.v_free[r] = s.sigma[r] * u;
+    const JointRow<L> row = joint_row<L>(specs[r], q, v_free, dt, erp);
+    s.sigma[r] = row.sigma;
+    rows.error[r] = row.error;
+    rows.target[r] = row.target;
+    rows.target_hi[r] = row.target_hi;
+    rows.lo[r] = row.lo;
+    rows.hi[r] = row.hi;
+    rows.v_free[r] = row.v_free;
+    rows.positional[r] = row.positional;
   }
 }
 

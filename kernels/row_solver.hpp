@@ -64,6 +64,18 @@ inline L band_step(const L& lambda, const L& v, const L& target, const L& target
   return lane::select(up > L(T(0)), up, lane::select(down < L(T(0)), down, L(T(0))));
 }
 
+// Per lane: true where one row is satisfied with all impulses zero. A row
+// bounded by another row's impulse (bound_row) has the box [0, 0] then.
+template <class L>
+inline lane::mask_t<L> row_at_rest(const L& v_free, const L& target, const L& target_hi, const L& lo, const L& hi,
+                                   const L& error, bool positional) {
+  using T = lane::scalar_t<L>;
+  const L zero(T(0)), one(T(1));
+  lane::mask_t<L> rest = lane::clamp(band_step(zero, v_free, target, target_hi, one), lo, hi) == zero;
+  if (positional) rest = rest && (error >= zero);
+  return rest;
+}
+
 // Per lane: true where every row is satisfied with all impulses zero, so
 // zero is the exact solution there.
 template <class L>
@@ -71,12 +83,9 @@ inline lane::mask_t<L> rows_at_rest(const RowBlock<L>& rows) {
   using T = lane::scalar_t<L>;
   lane::mask_t<L> rest(true);
   for (int r = 0; r < rows.m; ++r) {
-    const L lo = rows.bound_row[r] >= 0 ? L(T(0)) : rows.lo[r];
-    const L hi = rows.bound_row[r] >= 0 ? L(T(0)) : rows.hi[r];
-    const L zero(T(0)), one(T(1));
-    const L push = lane::clamp(band_step(zero, rows.v_free[r], rows.target[r], rows.target_hi[r], one), lo, hi);
-    rest = rest && (push == L(T(0)));
-    if (rows.positional[r]) rest = rest && (rows.error[r] >= L(T(0)));
+    const bool bound = rows.bound_row[r] >= 0;
+    rest = rest && row_at_rest(rows.v_free[r], rows.target[r], rows.target_hi[r], bound ? L(T(0)) : rows.lo[r],
+                               bound ? L(T(0)) : rows.hi[r], rows.error[r], rows.positional[r] != 0);
   }
   return rest;
 }
