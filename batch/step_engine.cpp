@@ -32,7 +32,7 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int rows, int columns)
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
                           const std::vector<DofSettings>& dofs, const StepPlan& plan)
-    : options_(options), km_(model), batch_(model, copies, kWidth, 0) {
+    : options_(options), plan_(plan), km_(model), batch_(model, copies, kWidth, 0) {
   const int nv = model.nv;
   jm_.acceleration_drive.resize(nv);
   for (int k = 0; k < nv; ++k) {
@@ -95,14 +95,11 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
       [this, rows, columns] { return Scratch(km_, rows, columns); });
 }
 
+// The row stages are laid out once, at construction; the others may change.
 template <class L>
 void StepEngine<L>::set_plan(const StepPlan& plan) {
   plan_.drives = plan.drives, plan_.damping = plan.damping, plan_.springs = plan.springs;
   plan_.soft_limits = plan.soft_limits, plan_.stribeck = plan.stribeck, plan_.wrenches = plan.wrenches;
-  if (row_specs_.empty() && column_dof_.empty()) {
-    plan_.hard_limits = plan.hard_limits, plan_.velocity_limits = plan.velocity_limits;
-    plan_.coulomb_friction = plan.coulomb_friction;
-  }
   jm_.drives = plan.drives, jm_.damping = plan.damping, jm_.springs = plan.springs;
   jm_.soft_limits = plan.soft_limits, jm_.stribeck = plan.stribeck;
 }
@@ -143,7 +140,8 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   T* v = B.state.v.block(block);
   const T* tau_ff = B.state.tau.block(block);
 
-  // Inputs that are not finite fault their copy (first reason wins).
+  // Inputs that are not finite fault their copy; when several are, the
+  // torque is named before the targets, the wrench and gravity.
   L input_fault(T(0));
   const std::pair<lane::mask_t<L>, Fault> checks[] = {
       {any_non_finite<L>(B.state.gravity.block(block), 3), Fault::NonFiniteGravity},
