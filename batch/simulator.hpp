@@ -33,11 +33,16 @@ struct StepBatch {
 
   int copies() const { return state.copies(); }
 
-  BatchState<T> state;     // q, v, tau (feedforward), wrench, inertia, gravity; qacc = last (v1 - v0) / dt
+  // q, v, tau (feedforward), wrench, inertia, gravity; qacc = last (v1 - v0) / h.
+  // Wrenches written here act only with Stage::ExternalWrenches on (forced,
+  // or after a set_link_wrench call).
+  BatchState<T> state;
   BatchArray<T> target_q;  // (nq) drive target position (quaternions for Spherical joints)
   BatchArray<T> target_v;  // (nv) drive target velocity
-  BatchArray<T> drive_stiffness;  // (nv) per-copy kp
-  BatchArray<T> drive_damping;    // (nv) per-copy kd
+  // (nv) per-copy kp and kd. Writing them here does not switch the drive
+  // stage on: use Simulator::set_drive_gains, or force Stage::Drives On.
+  BatchArray<T> drive_stiffness;
+  BatchArray<T> drive_damping;
   BatchArray<T> impulse;   // (rows) the solver's impulses of the last step: its warm start
   BatchArray<T> initial_q; // (nq) what a reset restores
   BatchArray<T> initial_v; // (nv)
