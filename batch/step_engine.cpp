@@ -125,8 +125,10 @@ void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockIn
   BlockInputs<T> at = in;
   at.q = q;
   at.v = v;
-  // RK4 evaluates the plain equations of motion at its stages: explicit.
-  const T gyroscopic = options_.implicit_gyroscopic && options_.integrator != Integrator::RK4 ? h : T(0);
+  // The gyroscopic force at the middle of the step (implicit midpoint:
+  // Jacobian weight h/2). RK4 evaluates the plain equations of motion at
+  // its stages: explicit.
+  const T gyroscopic = options_.implicit_gyroscopic && options_.integrator != Integrator::RK4 ? T(0.5) * h : T(0);
   StepJointTerms<L> terms{jm_, s.terms, tau_ff, gyroscopic};
   aba_with<L>(km_, at, terms, s.ws, fields(s.qacc));
 }

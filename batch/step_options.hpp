@@ -94,9 +94,9 @@ struct StepOptions {
   // not violated are speculative: they let the joint reach the limit exactly.
   double error_reduction = 0.2;
   double warm_start = 1.0;  // factor on last step's impulses as the solver's start
-  // A Free body's gyroscopic (velocity-product) force taken at the end of
-  // the step, linearised (backward Euler): a body spinning about its major
-  // or intermediate axis stays bounded in energy instead of blowing up as
+  // A Free body's gyroscopic (velocity-product) force taken at the middle
+  // of the step, linearised (implicit midpoint): a body spinning about its
+  // major or intermediate axis keeps its energy instead of blowing up as
   // with the explicit force. Not with RK4.
   bool implicit_gyroscopic = true;
   bool reset_on_fault = false;  // put a faulted copy back to its initial state

@@ -83,15 +83,17 @@ struct InputTorques {
     tau_out = tau ? lane::load<L>(tau + dof * lane::width_v<L>) : L(T(0));
     return L(T(0));
   }
-  // The step h over which a Free body's gyroscopic force is implicit; 0: explicit.
+  // a h, the weight of a Free body's implicit gyroscopic Jacobian (see
+  // gyroscopic_jacobian); 0: explicit.
   lane::scalar_t<L> implicit_gyroscopic_step() const { return 0; }
 };
 
 // h G for a Free body: G = d(v x* I v)/dv, the Jacobian of its velocity-
 // product force, column j = e_j x* (I v) + v x* (I e_j). With it the force
-// is taken at the end of the step, f(v1) ~ f(v0) + G (v1 - v0), and h G
-// joins the body's D (backward Euler on the gyroscopic term, as for a free
-// rigid body in Catto's "Numerical Methods", GDC 2015): a body spinning
+// is taken later in the step, f(v0 + a dv) ~ f(v0) + a G dv, and a h G
+// joins the body's D (a = 1: backward Euler, as for a free rigid body in
+// Catto's "Numerical Methods", GDC 2015; the simulation step passes a = 1/2,
+// the implicit midpoint rule, which keeps kinetic energy): a body spinning
 // near its intermediate or major axis no longer gains energy every step.
 template <class L>
 inline void gyroscopic_jacobian(const Inertia6<L>& I, const Vec6<L>& v, lane::scalar_t<L> h, L* hG) {

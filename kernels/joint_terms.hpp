@@ -154,7 +154,7 @@ struct StepJointTerms {
   const JointTermModel<T>& jm;
   JointTermScratch<L>& s;
   const T* tau_ff;  // (nv) per lane
-  T gyroscopic_step;  // h for an implicit gyroscopic term on Free bodies, 0 for explicit
+  T gyroscopic_step;  // weight of the implicit gyroscopic Jacobian on Free bodies (h/2), 0 for explicit
 
   T implicit_gyroscopic_step() const { return gyroscopic_step; }
 
