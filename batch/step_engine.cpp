@@ -24,8 +24,8 @@ L fault_code(Fault f) {
 }  // namespace
 
 template <class L>
-StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int rows, int columns)
-    : ws(km), terms(km.nv), rows(rows, columns, km.nv), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
+StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int row_count, int columns)
+    : ws(km), terms(km.nv), rows(row_count, columns, km.nv), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv) {}
 

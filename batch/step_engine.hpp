@@ -55,7 +55,7 @@ class StepEngine final : public Simulator::Engine {
     JointTermScratch<L> terms;
     JointRowScratch<L> rows;
     std::vector<L> u0, u1, u_free, qacc, displacement;  // (nv)
-    lane::mask_t<L> rows_at_rest{true};         // lanes where no solver row acts this step
+    lane::mask_t<L> rows_at_rest = lane::mask_t<L>(true);  // lanes where no solver row acts this step
     // [field][lane] arrays, as lanes for their alignment; read through fields()
     std::vector<L> q_next;          // (nq) the step's new positions
     std::vector<L> q_stage, v_stage;  // RK4 stage state
