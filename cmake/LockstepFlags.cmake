@@ -20,6 +20,13 @@ target_compile_options(lockstep_flags INTERFACE
   -Wall -Wextra -Wpedantic -Wshadow -Wno-unused-parameter)
 
 set(LOCKSTEP_PUBLIC_FLAGS -ffp-contract=off -fno-fast-math)
+# g++ 12's basic-block (SLP) vectoriser still fuses some a*b+c of the scalar
+# reference lane into FMAs despite -ffp-contract=off (seen in integrate():
+# scalar and SIMD lanes then differ in the last bit); without it g++ builds
+# keep the lanes bit-identical. clang needs no such flag.
+if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+  list(APPEND LOCKSTEP_PUBLIC_FLAGS -fno-tree-slp-vectorize)
+endif()
 if(LOCKSTEP_PORTABLE)
   set(LOCKSTEP_ARCH_FLAGS -march=x86-64 -mtune=generic)
 else()
