@@ -75,9 +75,6 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     require(std::isfinite(d.spring_rest), where + "spring_rest must be finite");
     require(!(d.lower > d.upper), where + "lower limit " + std::to_string(d.lower) + " above upper " +
                                       std::to_string(d.upper));
-    require(d.armature == model.dof_armature[k], where + "armature is the model's (" +
-                                                     std::to_string(model.dof_armature[k]) +
-                                                     "); change it in the model");
     if (type == JointType::Free)
       require(d.drive_stiffness == 0 && d.drive_damping == 0,
               where + "a floating base takes no drive (set the gains of its 6 DOFs to 0)");
@@ -299,7 +296,6 @@ void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::Vecto
     b.initial_q.set(copy, qn);
     b.initial_v.set(copy, v);
     b.impulse.set(copy, Eigen::VectorXd::Zero(b.impulse.size()));
-    return 0;
   });
 }
 
@@ -310,7 +306,7 @@ void Simulator::set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v
 void Simulator::set_torque(int copy, const Eigen::VectorXd& tau) {
   check_copy(copy);
   check_velocity(tau, "set_torque");
-  visit([&](auto& b) { return b.state.tau.set(copy, tau), 0; });
+  visit([&](auto& b) { b.state.tau.set(copy, tau); });
 }
 
 void Simulator::set_drive_target(int copy, const Eigen::VectorXd& q_target, const Eigen::VectorXd& v_target) {
@@ -321,7 +317,6 @@ void Simulator::set_drive_target(int copy, const Eigen::VectorXd& q_target, cons
   visit([&](auto& b) {
     b.target_q.set(copy, q_target);
     b.target_v.set(copy, v_target);
-    return 0;
   });
 }
 
@@ -339,7 +334,6 @@ void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen
   visit([&](auto& b) {
     b.drive_stiffness.set(copy, kp);
     b.drive_damping.set(copy, kd);
-    return 0;
   });
   if (!per_copy_gains_ && (kp.any() || kd.any())) {
     per_copy_gains_ = true;
@@ -353,8 +347,8 @@ void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 
     throw std::out_of_range("set_link_wrench: body index " + std::to_string(body) + " outside [0, " +
                             std::to_string(model_->nbody) + ")");
   visit([&](auto& b) {
-    for (int k = 0; k < 6; ++k) b.state.wrench.at(copy, 6 * body + k) = static_cast<std::decay_t<decltype(b.state.wrench.at(0, 0))>>(wrench[k]);
-    return 0;
+    using T = std::decay_t<decltype(b.state.wrench.at(0, 0))>;
+    for (int k = 0; k < 6; ++k) b.state.wrench.at(copy, 6 * body + k) = static_cast<T>(wrench[k]);
   });
   if (!wrenches_used_) {
     wrenches_used_ = true;
@@ -364,7 +358,7 @@ void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 
 
 void Simulator::set_gravity(int copy, const Eigen::Vector3d& gravity) {
   check_copy(copy);
-  visit([&](auto& b) { return b.state.gravity.set(copy, gravity), 0; });
+  visit([&](auto& b) { b.state.gravity.set(copy, gravity); });
 }
 
 Fault Simulator::fault(int copy) const {
@@ -380,7 +374,7 @@ int Simulator::fault_count() const {
 
 void Simulator::clear_fault(int copy) {
   check_copy(copy);
-  visit([&](auto& b) { return b.fault.at(copy, 0) = 0, 0; });
+  visit([&](auto& b) { b.fault.at(copy, 0) = 0; });
 }
 
 void Simulator::reset(int copy) {
@@ -390,7 +384,6 @@ void Simulator::reset(int copy) {
     b.state.v.set(copy, b.initial_v.get(copy));
     b.impulse.set(copy, Eigen::VectorXd::Zero(b.impulse.size()));
     b.fault.at(copy, 0) = 0;
-    return 0;
   });
 }
 
@@ -414,7 +407,6 @@ double Simulator::energy(int copy) const {
     one.v.set(0, b.state.v.get(copy));
     one.inertia.set(0, b.state.inertia.get(copy));
     one.gravity.set(0, b.state.gravity.get(copy));
-    return 0;
   });
   BatchArray<double> kinetic = dynamics.make_array(1, 1), potential = dynamics.make_array(1, 1);
   dynamics.kinetic_energy(one, kinetic);

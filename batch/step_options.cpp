@@ -48,7 +48,6 @@ std::vector<DofSettings> default_dof_settings(const Model& model) {
     d.max_force = model.dof_effort_limit[k];
     d.damping = model.dof_damping[k];
     d.friction = model.dof_friction[k];
-    d.armature = model.dof_armature[k];
     d.lower = model.dof_lower[k];
     d.upper = model.dof_upper[k];
     d.velocity_limit = model.dof_velocity_limit[k];

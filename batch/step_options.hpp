@@ -46,7 +46,7 @@ struct DofSettings {
   double damping = 0.0;           // viscous [N m s/rad], implicit
   double spring_stiffness = 0.0;  // [N m/rad], implicit
   double spring_rest = 0.0;       // rest position [rad or m]
-  double armature = 0.0;          // read-only here: the model's rotor inertia
+  // (armature, the rotor inertia, is the model's: JointSpec::armature)
   // friction
   double friction = 0.0;  // Coulomb force [N m or N]
   FrictionModel friction_model = FrictionModel::Coulomb;

@@ -32,9 +32,7 @@ struct JointRowScratch {
   RowBlock<L> rows;
   std::vector<L> sigma;    // (m)
   std::vector<L> columns;  // (ncolumn x nv)
-  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), columns(ncolumn * nv) {
-    for (int r = 0; r < m; ++r) rows.positional[r] = 0;
-  }
+  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), columns(ncolumn * nv) {}
 };
 
 // One joint row of one block, per lane, from q and the free velocity u*.
