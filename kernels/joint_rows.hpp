@@ -99,7 +99,7 @@ template <class L>
 void build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const lane::scalar_t<L>* q,
                       const L* v_free, lane::scalar_t<L> dt, lane::scalar_t<L> erp, JointRowScratch<L>& s) {
   RowBlock<L>& rows = s.rows;
-  for (int r = 0; r < rows.m; ++r) {
+  for (std::size_t r = 0; r < specs.size(); ++r) {
     const JointRow<L> row = joint_row<L>(specs[r], q, v_free, dt, erp);
     s.sigma[r] = row.sigma;
     rows.error[r] = row.error;
@@ -109,12 +109,14 @@ void build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
     rows.hi[r] = row.hi;
     rows.v_free[r] = row.v_free;
     rows.positional[r] = row.positional;
+    rows.rate[r] = L(erp / dt);
   }
 }
 
-// The Delassus matrix of the rows: Mt = CRBA + armature + w factored as
-// L^T D L, one solve per distinct row DOF. Needs ws.local; overwrites
-// ws.inertia and ws.matrix.
+// The joint rows' block of the Delassus matrix (rows [0, specs.size()) of
+// an m x m D): Mt = CRBA + armature + w factored as L^T D L, left in
+// ws.matrix for further rows, one solve per distinct row DOF. Needs
+// ws.local; overwrites ws.inertia and ws.matrix.
 template <class L>
 void joint_row_delassus(const KernelModel<lane::scalar_t<L>>& km,
                         const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const std::vector<int>& column_dof,
@@ -135,9 +137,9 @@ void joint_row_delassus(const KernelModel<lane::scalar_t<L>>& km,
     for (int r = 0; r < nv; ++r) lane::store(L(T(r == column_dof[c] ? 1 : 0)), column + r * W);
     ltdl_solve<L>(km, H, column);
   }
-  const int m = s.rows.m;
-  for (int r = 0; r < m; ++r)
-    for (int c = 0; c < m; ++c)
+  const int m = s.rows.m, mj = static_cast<int>(specs.size());  // joint rows come first
+  for (int r = 0; r < mj; ++r)
+    for (int c = 0; c < mj; ++c)
       s.rows.D[r * m + c] = s.sigma[r] * s.sigma[c] * s.columns[specs[c].column * nv + specs[r].dof];
 }
 
@@ -147,7 +149,7 @@ template <class L>
 void add_row_impulses(const KernelModel<lane::scalar_t<L>>& km, const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
                       const JointRowScratch<L>& s, const std::vector<L>& x, L* out) {
   const int nv = km.nv;
-  for (int r = 0; r < s.rows.m; ++r) {
+  for (std::size_t r = 0; r < specs.size(); ++r) {
     const L scaled = s.sigma[r] * x[r];
     const L* column = &s.columns[specs[r].column * nv];
     for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(scaled, column[k], out[k]);

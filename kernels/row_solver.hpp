@@ -14,7 +14,9 @@
 // limits, velocity limits and joint friction are its first row types;
 // contacts, loops and mimic couplings add rows without changing it. A row
 // whose bounds follow another row's impulse (friction under a normal force:
-// |lambda_r| <= mu_r lambda_bound) names that row in bound_row.
+// |lambda_r| <= mu_r lambda_bound) names that row in bound_row; two such rows
+// flagged as a cone pair share one bound on their length (the Coulomb
+// cone, |(lambda_r, lambda_r+1)| <= mu_r lambda_bound, projected radially).
 #pragma once
 
 #include "kernels/lane.hpp"
@@ -30,7 +32,10 @@ struct RowBlock {
   int m = 0;
   std::vector<int> bound_row;  // (m) -1, or the row whose impulse bounds this one (times mu)
   std::vector<L> mu;           // (m) friction coefficient of bound rows
+  std::vector<unsigned char> cone;        // (m) 1: rows r and r+1 are a friction cone pair bounded by row bound_row[r]
   std::vector<unsigned char> positional;  // (m) 1: target follows a position error (TGS re-evaluates it)
+  std::vector<L> rate;         // (m) positional rows: share of a violation removed per second (erp / dt)
+  std::vector<L> floor;        // (m) positional rows: lowest target (restitution's bounce velocity; -inf if none)
   std::vector<L> D;            // (m x m) Delassus matrix
   std::vector<L> v_free;       // (m) row velocity before the solve
   std::vector<L> target, target_hi, lo, hi;  // (m) velocity band and impulse box
@@ -39,9 +44,14 @@ struct RowBlock {
   std::vector<L> lambda_sum;   // (m) TGS: sum over substeps of h lambda (the position-level impulse)
   std::vector<L> displacement; // (m) TGS: row displacement accumulated over substeps
 
-  explicit RowBlock(int rows)
-      : m(rows), bound_row(rows, -1), mu(rows), positional(rows, 0), D(rows * rows), v_free(rows), target(rows),
-        target_hi(rows), lo(rows), hi(rows), error(rows), lambda(rows), lambda_sum(rows), displacement(rows) {}
+  // Room for `capacity` rows; m (the rows of the current block) may be set
+  // to anything up to it, D then being m x m.
+  explicit RowBlock(int capacity)
+      : m(capacity), bound_row(capacity, -1), mu(capacity), cone(capacity, 0), positional(capacity, 0),
+        rate(capacity), floor(capacity, L(-std::numeric_limits<lane::scalar_t<L>>::infinity())),
+        D(capacity * capacity), v_free(capacity), target(capacity),
+        target_hi(capacity), lo(capacity), hi(capacity), error(capacity), lambda(capacity), lambda_sum(capacity),
+        displacement(capacity) {}
 };
 
 // The target of a positional row with error e over a time h: speculative
@@ -90,20 +100,45 @@ inline lane::mask_t<L> rows_at_rest(const RowBlock<L>& rows) {
   return rest;
 }
 
+// Row r's velocity from the current impulses.
+template <class L>
+inline L row_velocity(const RowBlock<L>& rows, int r) {
+  const L* Dr = &rows.D[r * rows.m];
+  L v = rows.v_free[r];
+  for (int c = 0; c < rows.m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
+  return v;
+}
+
 // One Gauss-Seidel sweep over the rows; v_r recomputed from the impulses.
+// A cone pair is updated together: each row's unclamped step at the pair's
+// current velocities, then the pair projected radially onto the disc of
+// radius mu lambda_bound (Coulomb's isotropic cone, not a pyramid).
 template <class L>
 inline void gauss_seidel_sweep(RowBlock<L>& rows) {
+  using T = lane::scalar_t<L>;
   const int m = rows.m;
   for (int r = 0; r < m; ++r) {
-    const L* Dr = &rows.D[r * m];
-    L v = rows.v_free[r];
-    for (int c = 0; c < m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
+    const L inv_d = L(T(1)) / rows.D[r * m + r];
+    if (rows.cone[r]) {
+      const L inv_d2 = L(T(1)) / rows.D[(r + 1) * m + r + 1];
+      const L a = rows.lambda[r] - row_velocity(rows, r) * inv_d;
+      const L b = rows.lambda[r + 1] - row_velocity(rows, r + 1) * inv_d2;
+      const L radius = rows.mu[r] * rows.lambda[rows.bound_row[r]];
+      const L length = lane::sqrt(a * a + b * b);
+      const L scale = lane::select(length > radius, radius / lane::max(length, L(std::numeric_limits<T>::min())), L(T(1)));
+      // no normal impulse, no friction (whatever the unclamped step was)
+      const auto pushed = radius > L(T(0));
+      rows.lambda[r] = lane::select(pushed, a * scale, L(T(0)));
+      rows.lambda[r + 1] = lane::select(pushed, b * scale, L(T(0)));
+      ++r;
+      continue;
+    }
+    const L v = row_velocity(rows, r);
     L lo = rows.lo[r], hi = rows.hi[r];
     if (rows.bound_row[r] >= 0) {
       hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
       lo = -hi;
     }
-    const L inv_d = L(lane::scalar_t<L>(1)) / Dr[r];
     rows.lambda[r] = lane::clamp(band_step(rows.lambda[r], v, rows.target[r], rows.target_hi[r], inv_d), lo, hi);
   }
 }
@@ -115,14 +150,15 @@ void pgs_solve(RowBlock<L>& rows, int iterations) {
 
 // TGS over `substeps` substeps of h = dt / substeps: before each sweep the
 // positional rows' targets follow their error advanced by the displacement
-// so far; after it every row's displacement grows by h v_r and lambda_sum
-// by h lambda_r (the integrator moves positions by dt v_free + J^T-mapped
-// lambda_sum, see apply in constraint_rows.hpp).
+// so far (at their own correction rate, never below their floor); after it
+// every row's displacement grows by h v_r and lambda_sum by h lambda_r (the
+// integrator moves positions by h v_free plus the lambda_sum-mapped
+// impulses).
 template <class L>
-void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
+void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt) {
   using T = lane::scalar_t<L>;
   const int m = rows.m;
-  const L h(dt / T(substeps)), inv_h(T(substeps) / dt), erp_per_step(erp / dt);
+  const L h(dt / T(substeps)), inv_h(T(substeps) / dt);
   for (int r = 0; r < m; ++r) {
     rows.displacement[r] = L(T(0));
     rows.lambda_sum[r] = L(T(0));
@@ -130,12 +166,11 @@ void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, lane::scal
   for (int k = 0; k < substeps; ++k) {
     for (int r = 0; r < m; ++r)
       if (rows.positional[r])
-        rows.target[r] = rows.target_hi[r] = positional_target(rows.error[r] + rows.displacement[r], inv_h, erp_per_step);
+        rows.target[r] = rows.target_hi[r] =
+            lane::max(positional_target(rows.error[r] + rows.displacement[r], inv_h, rows.rate[r]), rows.floor[r]);
     gauss_seidel_sweep(rows);
     for (int r = 0; r < m; ++r) {
-      L v = rows.v_free[r];
-      for (int c = 0; c < m; ++c) v = lane::fmadd(rows.D[r * m + c], rows.lambda[c], v);
-      rows.displacement[r] = lane::fmadd(h, v, rows.displacement[r]);
+      rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r), rows.displacement[r]);
       rows.lambda_sum[r] = lane::fmadd(h, rows.lambda[r], rows.lambda_sum[r]);
     }
   }

@@ -1,6 +1,6 @@
 // The constraint solver alone, on small problems with known solutions: a
-// one-sided row, a boxed row, and a friction row bounded by a normal row's
-// impulse (the coupling contacts will use).
+// one-sided row, a boxed row, a friction row bounded by a normal row's
+// impulse, and a friction cone pair (the coupling contacts use).
 #include "kernels/row_solver.hpp"
 
 #include <gtest/gtest.h>
@@ -56,13 +56,14 @@ TEST(RowSolver, TgsAndPgsCloseAGapExactly) {
     rows.v_free = {-10.0};
     rows.error = {0.05};
     rows.positional[0] = 1;
-    rows.target = {positional_target(0.05, 1.0 / 0.01, 0.2 / 0.01)};
+    rows.rate = {0.2 / 0.01};
+    rows.target = {positional_target(0.05, 1.0 / 0.01, rows.rate[0])};
     rows.target_hi = rows.target;
     rows.lo = {0.0};
     rows.hi = {kInf};
     rows.lambda = {0.0};
     if (tgs) {
-      tgs_solve(rows, 4, 0.01, 0.2);
+      tgs_solve(rows, 4, 0.01);
       // displacement over the step: the gap, never more
       EXPECT_NEAR(rows.displacement[0], -0.05, 1e-15);
     } else {
@@ -70,6 +71,52 @@ TEST(RowSolver, TgsAndPgsCloseAGapExactly) {
       EXPECT_NEAR(-10.0 + 0.5 * rows.lambda[0], -5.0, 1e-12);  // v = -e/dt
     }
   }
+}
+
+// A normal row and a cone pair, uncoupled (D = I) so one sweep solves it:
+// the normal row settles at lambda_n = 1; the friction pair's unclamped
+// impulse -(3, 4) is longer than mu lambda_n = 0.5, so it is scaled onto the
+// circle, -(0.3, 0.4), keeping its direction (a pyramid would give
+// -(0.5, 0.5)); a small slip -(0.03, 0.04) lies inside and sticks.
+TEST(RowSolver, ConePairProjectsRadially) {
+  for (double slip : {1.0, 0.01}) {
+    RowBlock<double> rows(3);
+    rows.D = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    rows.v_free = {-1.0, 3.0 * slip, 4.0 * slip};
+    rows.target = {0.0, 0.0, 0.0};
+    rows.target_hi = rows.target;
+    rows.lo = {0.0, -kInf, -kInf};
+    rows.hi = {kInf, kInf, kInf};
+    rows.bound_row[1] = rows.bound_row[2] = 0;
+    rows.mu[1] = rows.mu[2] = 0.5;
+    rows.cone[1] = 1;
+    rows.lambda = {0.0, 0.0, 0.0};
+    pgs_solve(rows, 2);
+    EXPECT_NEAR(rows.lambda[0], 1.0, 1e-15);
+    const double scale = slip == 1.0 ? 0.1 : 1.0;
+    EXPECT_NEAR(rows.lambda[1], -3.0 * slip * scale, 1e-15) << "slip " << slip;
+    EXPECT_NEAR(rows.lambda[2], -4.0 * slip * scale, 1e-15) << "slip " << slip;
+  }
+}
+
+// A positional row with a floor (restitution's bounce velocity): the target
+// is the floor when that is above the positional target, for PGS as set by
+// the caller and for TGS as re-evaluated at every substep.
+TEST(RowSolver, FloorLiftsAPositionalTarget) {
+  RowBlock<double> rows(1);
+  rows.D = {0.5};
+  rows.v_free = {-2.0};
+  rows.error = {0.001};
+  rows.positional[0] = 1;
+  rows.rate = {20.0};
+  rows.floor = {1.0};
+  rows.target = rows.target_hi = {1.0};
+  rows.lo = {0.0};
+  rows.hi = {kInf};
+  rows.lambda = {0.0};
+  tgs_solve(rows, 4, 0.01);
+  EXPECT_NEAR(rows.v_free[0] + rows.D[0] * rows.lambda[0], 1.0, 1e-12);
+  EXPECT_NEAR(rows.displacement[0], 0.01, 1e-12);  // every substep moved at the floor velocity 1
 }
 
 // A band row (a velocity limit, |v| <= 1) next to a row that pushes its
