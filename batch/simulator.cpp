@@ -24,7 +24,9 @@ std::size_t StepBatch<T>::bytes_per_copy() const {
   for (const BatchArray<T>* a : {&state.q, &state.v, &state.tau, &state.qacc, &state.wrench, &state.inertia,
                                  &state.gravity, &target_q, &target_v, &drive_stiffness, &drive_damping, &impulse,
                                  &initial_q, &initial_v, &fault, &applied_drive, &applied_passive, &applied_friction,
-                                 &applied_limits})
+                                 &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
+                                 &contact_point, &contact_normal, &contact_separation, &contact_count,
+                                 &contact_dropped, &contact_overflow_steps})
     values += static_cast<std::size_t>(a->size());
   return values * sizeof(T);
 }
@@ -33,6 +35,13 @@ template struct StepBatch<float>;
 template struct StepBatch<double>;
 
 namespace {
+
+// Zero joint-row impulses, no contact points: nothing to warm-start from.
+template <class T>
+void clear_warm_start(StepBatch<T>& b, int copy) {
+  b.impulse.set(copy, Eigen::VectorXd::Zero(b.impulse.size()));
+  if (b.contact_id.size() > 0) b.contact_id.set(copy, Eigen::VectorXd::Constant(b.contact_id.size(), -1.0));
+}
 
 void require(bool ok, const std::string& message) {
   if (!ok) throw std::invalid_argument(message);
@@ -114,19 +123,22 @@ StageDecision decide(Stage stage, StageMode mode, int count, const std::string& 
 Simulator::Simulator(const Model& model, int copies, const StepOptions& options, std::vector<DofSettings> dofs)
     : model_(&model), options_(options), dofs_(dofs.empty() ? default_dof_settings(model) : std::move(dofs)) {
   validate(model, copies, options_, dofs_);
+  validate_contact_settings(model, options_.contacts);
+  pairs_ = build_contact_pairs(model, options_.contacts);
   make_plan();
   const StepPlan plan = step_plan();
-  if (options_.integrator == Integrator::RK4 && (plan.hard_limits || plan.velocity_limits || plan.coulomb_friction))
+  if (options_.integrator == Integrator::RK4 &&
+      (plan.hard_limits || plan.velocity_limits || plan.coulomb_friction || plan.contacts))
     throw std::invalid_argument(
         "StepOptions::integrator RK4 integrates scenes without solver rows, and this scene has " + rows_summary() +
         ": use SemiImplicitEuler or Trapezoid, or force those stages off");
   const bool simd = options_.lanes == Lanes::Simd;
   if (options_.precision == Precision::Float) {
-    if (simd) engine_ = std::make_unique<StepEngine<lane::simd<float>>>(model, copies, options_, dofs_, plan);
-    else engine_ = std::make_unique<StepEngine<float>>(model, copies, options_, dofs_, plan);
+    if (simd) engine_ = std::make_unique<StepEngine<lane::simd<float>>>(model, copies, options_, dofs_, plan, pairs_);
+    else engine_ = std::make_unique<StepEngine<float>>(model, copies, options_, dofs_, plan, pairs_);
   } else {
-    if (simd) engine_ = std::make_unique<StepEngine<lane::simd<double>>>(model, copies, options_, dofs_, plan);
-    else engine_ = std::make_unique<StepEngine<double>>(model, copies, options_, dofs_, plan);
+    if (simd) engine_ = std::make_unique<StepEngine<lane::simd<double>>>(model, copies, options_, dofs_, plan, pairs_);
+    else engine_ = std::make_unique<StepEngine<double>>(model, copies, options_, dofs_, plan, pairs_);
   }
 }
 
@@ -166,6 +178,7 @@ void Simulator::make_plan() {
       decide(Stage::HardLimits, mode(Stage::HardLimits), hard, "DOFs with hard position limits"),
       decide(Stage::VelocityLimits, mode(Stage::VelocityLimits), velocity, "DOFs with velocity limits"),
       decide(Stage::CoulombFriction, mode(Stage::CoulombFriction), coulomb, "DOFs with Coulomb friction"),
+      decide(Stage::Contacts, mode(Stage::Contacts), static_cast<int>(pairs_.pairs.size()), "candidate shape pairs"),
   };
 }
 
@@ -181,12 +194,13 @@ StepPlan Simulator::step_plan() const {
   p.hard_limits = runs(Stage::HardLimits);
   p.velocity_limits = runs(Stage::VelocityLimits);
   p.coulomb_friction = runs(Stage::CoulombFriction);
+  p.contacts = runs(Stage::Contacts);
   return p;
 }
 
 std::string Simulator::rows_summary() const {
   std::string out;
-  for (Stage s : {Stage::HardLimits, Stage::VelocityLimits, Stage::CoulombFriction}) {
+  for (Stage s : {Stage::HardLimits, Stage::VelocityLimits, Stage::CoulombFriction, Stage::Contacts}) {
     const StageDecision& d = plan_[static_cast<int>(s)];
     if (!d.runs) continue;
     if (!out.empty()) out += ", ";
@@ -295,7 +309,29 @@ void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::Vecto
     b.state.v.set(copy, v);
     b.initial_q.set(copy, qn);
     b.initial_v.set(copy, v);
-    b.impulse.set(copy, Eigen::VectorXd::Zero(b.impulse.size()));
+    clear_warm_start(b, copy);
+  });
+}
+
+CopySnapshot Simulator::snapshot(int copy) const {
+  check_copy(copy);
+  return visit([&](auto& b) {
+    return CopySnapshot{b.state.q.get(copy), b.state.v.get(copy), b.impulse.get(copy), b.contact_id.get(copy),
+                        b.contact_impulse.get(copy)};
+  });
+}
+
+void Simulator::restore(int copy, const CopySnapshot& s) {
+  check_copy(copy);
+  visit([&](auto& b) {
+    require(s.q.size() == model_->nq && s.v.size() == model_->nv && s.joint_impulse.size() == b.impulse.size() &&
+                s.contact_id.size() == b.contact_id.size() && s.contact_impulse.size() == b.contact_impulse.size(),
+            "restore: the snapshot's sizes do not match this simulator's scene");
+    b.state.q.set(copy, s.q);
+    b.state.v.set(copy, s.v);
+    b.impulse.set(copy, s.joint_impulse);
+    b.contact_id.set(copy, s.contact_id);
+    b.contact_impulse.set(copy, s.contact_impulse);
   });
 }
 
@@ -382,7 +418,9 @@ void Simulator::reset(int copy) {
   visit([&](auto& b) {
     b.state.q.set(copy, b.initial_q.get(copy));
     b.state.v.set(copy, b.initial_v.get(copy));
-    b.impulse.set(copy, Eigen::VectorXd::Zero(b.impulse.size()));
+    clear_warm_start(b, copy);
+    for (auto* a : {&b.contact_count, &b.contact_dropped, &b.contact_overflow_steps})
+      if (a->size() > 0) a->at(copy, 0) = 0;
     b.fault.at(copy, 0) = 0;
   });
 }
@@ -394,6 +432,76 @@ AppliedTorque Simulator::applied_torque(int copy) const {
   return visit([&](auto& b) {
     return AppliedTorque{b.applied_drive.get(copy), b.applied_passive.get(copy), b.applied_friction.get(copy),
                          b.applied_limits.get(copy)};
+  });
+}
+
+void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction) {
+  check_copy(copy);
+  require(options_.contacts.ground && plan_[static_cast<int>(Stage::Contacts)].runs,
+          "set_ground: the scene has no ground (ContactSettings::ground) or its contacts are off");
+  require(std::isfinite(height), "set_ground: height must be finite");
+  require(normal.allFinite() && normal.norm() > 1e-9, "set_ground: normal must be a finite non-zero vector");
+  require(std::isfinite(friction) && friction >= 0, "set_ground: friction must be finite and >= 0");
+  const Eigen::Vector3d n = normal.normalized();
+  visit([&](auto& b) {
+    b.ground.set(copy, Eigen::Vector4d(n.x(), n.y(), n.z(), n.z() * height));
+    b.ground_friction.set(copy, Eigen::VectorXd::Constant(1, friction));
+  });
+}
+
+std::vector<Contact> Simulator::contacts(int copy) const {
+  check_copy(copy);
+  std::vector<Contact> out;
+  if (!plan_[static_cast<int>(Stage::Contacts)].runs || pairs_.pairs.empty()) return out;
+  const double h = options_.dt / options_.substeps;
+  visit([&](auto& b) {
+    using T = std::decay_t<decltype(b.contact_id.at(0, 0))>;
+    const int k = b.contact_impulse.size() / b.contact_id.size();
+    for (int c = 0; c < b.contact_id.size(); ++c) {
+      const int id = static_cast<int>(b.contact_id.at(copy, c));
+      if (id < 0) continue;
+      // the pair whose candidates hold id
+      auto it = std::upper_bound(pairs_.pairs.begin(), pairs_.pairs.end(), id,
+                                 [](int x, const ContactPair& p) { return x < p.first_candidate; });
+      const ContactPair& pair = *(it - 1);
+      Contact contact;
+      contact.shape_a = pair.a.shape;
+      contact.shape_b = pair.b.shape;
+      contact.body_a = pair.a.body;
+      contact.body_b = pair.b.body;
+      Vec3<T> n, t1, t2;
+      n = {b.contact_normal.at(copy, 3 * c), b.contact_normal.at(copy, 3 * c + 1), b.contact_normal.at(copy, 3 * c + 2)};
+      tangent_frame<T>(n, t1, t2);  // the solver's frame, in its precision
+      contact.normal = Eigen::Vector3d(n.x, n.y, n.z);
+      contact.point = Eigen::Vector3d(b.contact_point.at(copy, 3 * c), b.contact_point.at(copy, 3 * c + 1),
+                                      b.contact_point.at(copy, 3 * c + 2));
+      contact.separation = b.contact_separation.at(copy, c);
+      auto impulse = [&](int i) { return static_cast<double>(b.contact_impulse.at(copy, c * k + i)); };
+      contact.force = (impulse(0) * contact.normal + impulse(1) * Eigen::Vector3d(t1.x, t1.y, t1.z) +
+                       impulse(2) * Eigen::Vector3d(t2.x, t2.y, t2.z)) / h;
+      contact.torsion = k > 3 ? impulse(3) / h : 0.0;
+      out.push_back(contact);
+    }
+  });
+  return out;
+}
+
+Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::body_contact_wrenches(int copy) const {
+  Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, model_->nbody);
+  for (const Contact& c : contacts(copy)) {
+    const Eigen::Vector3d torque = c.point.cross(c.force) + c.torsion * c.normal;
+    if (c.body_b >= 0) out.col(c.body_b) += (Eigen::Matrix<double, 6, 1>() << c.force, torque).finished();
+    if (c.body_a >= 0) out.col(c.body_a) -= (Eigen::Matrix<double, 6, 1>() << c.force, torque).finished();
+  }
+  return out;
+}
+
+ContactOverflow Simulator::contact_overflow(int copy) const {
+  check_copy(copy);
+  if (!plan_[static_cast<int>(Stage::Contacts)].runs || pairs_.pairs.empty()) return {};
+  return visit([&](auto& b) {
+    return ContactOverflow{static_cast<int>(b.contact_dropped.at(copy, 0)),
+                           static_cast<int>(b.contact_overflow_steps.at(copy, 0))};
   });
 }
 

@@ -13,6 +13,7 @@
 // structure-of-arrays storage directly (T = the chosen precision).
 #pragma once
 
+#include "batch/contact_pairs.hpp"
 #include "batch/step_options.hpp"
 #include "layout/batch_state.hpp"
 
@@ -53,6 +54,15 @@ struct StepBatch {
   // friction, with their implicit parts), Coulomb friction impulse / dt,
   // limit impulses / dt. Empty otherwise.
   BatchArray<T> applied_drive, applied_passive, applied_friction, applied_limits;
+  // Contacts (empty without them): the ground plane n . x = d as (n, d) and
+  // its friction; per contact slot the point's candidate number (-1: none),
+  // the solver's impulses (normal, t1, t2[, torsion]; also the next step's
+  // warm start), point, normal and separation at the start of the step; the
+  // contacts kept, those dropped beyond capacity, and the steps that
+  // dropped some since the last reset.
+  BatchArray<T> ground, ground_friction;
+  BatchArray<T> contact_id, contact_impulse, contact_point, contact_normal, contact_separation;
+  BatchArray<T> contact_count, contact_dropped, contact_overflow_steps;
 
   std::size_t bytes_per_copy() const;
 };
@@ -63,6 +73,30 @@ struct AppliedTorque {
   Eigen::VectorXd passive;   // damping, springs, soft limits, Stribeck friction
   Eigen::VectorXd friction;  // Coulomb friction impulse / dt
   Eigen::VectorXd limits;    // position and velocity limit impulses / dt
+};
+
+// One contact point of a copy after a step (Simulator::contacts).
+struct Contact {
+  int shape_a = kGroundShape, shape_b = kGroundShape;  // Model::shapes index, kGroundShape or static_box_shape(i)
+  int body_a = -1, body_b = -1;     // moving bodies; -1: the world
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();   // world, at the start of the step
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(); // world, from A to B
+  double separation = 0;            // m, negative: penetration
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();   // on B at the point, world [N]: the step's impulse / dt
+  double torsion = 0;               // on B about the normal [N m] (torsional friction)
+};
+
+// Everything a copy's next steps depend on besides its inputs: the state
+// and the solver's warm start (joint-row impulses, contact points and their
+// impulses). Restoring a snapshot replays the copy bit for bit.
+struct CopySnapshot {
+  Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse;
+};
+
+// Contacts dropped for want of capacity.
+struct ContactOverflow {
+  int dropped = 0;         // in the last step
+  int overflow_steps = 0;  // steps that dropped some since the last reset
 };
 
 class Simulator {
@@ -95,6 +129,8 @@ class Simulator {
   Eigen::VectorXd v(int copy) const;
   void set_state(int copy, const Eigen::VectorXd& q, const Eigen::VectorXd& v);
   void set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v);
+  CopySnapshot snapshot(int copy) const;
+  void restore(int copy, const CopySnapshot& snapshot);  // throws on a snapshot of another scene
 
   // Inputs of one copy; they persist until changed.
   void set_torque(int copy, const Eigen::VectorXd& tau_ff);                     // (nv) feedforward
@@ -115,6 +151,17 @@ class Simulator {
   void reset(int copy);
 
   AppliedTorque applied_torque(int copy) const;  // needs record_applied_torque
+
+  // Contacts. The candidate shape pairs after filtering (and notes on
+  // shapes left out); the ground of one copy (plane through (0, 0, height)
+  // with the unit normal, and its friction); the contacts of the last step
+  // and their total wrench on each body ([force; torque about the world
+  // origin], world axes, one column per body).
+  const ContactPairs& contact_pairs() const { return pairs_; }
+  void set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction);
+  std::vector<Contact> contacts(int copy) const;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> body_contact_wrenches(int copy) const;
+  ContactOverflow contact_overflow(int copy) const;
   // Mechanical energy (kinetic + gravity potential) of one copy, in double,
   // with the copy's inertial parameters and gravity.
   double energy(int copy) const;
@@ -143,6 +190,7 @@ class Simulator {
   StepOptions options_;
   std::vector<DofSettings> dofs_;
   std::vector<StageDecision> plan_;
+  ContactPairs pairs_;
   double time_ = 0.0;
   bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive
   bool wrenches_used_ = false;   // set_link_wrench was called

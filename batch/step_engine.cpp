@@ -24,14 +24,16 @@ L fault_code(Fault f) {
 }  // namespace
 
 template <class L>
-StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int row_count, int columns)
-    : ws(km), terms(km.nv), rows(row_count, columns, km.nv), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
+StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact,
+                                int candidates)
+    : ws(km), terms(km.nv), rows(joint_rows + contact.capacity * contact.rows_per_contact, columns, km.nv),
+      contacts(contact.capacity, contact.rows_per_contact, km.nv, km.nbody, candidates), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
-                          const std::vector<DofSettings>& dofs, const StepPlan& plan)
+                          const std::vector<DofSettings>& dofs, const StepPlan& plan, const ContactPairs& pairs)
     : options_(options), plan_(plan), km_(model), batch_(model, copies, kWidth, 0) {
   const int nv = model.nv;
   jm_.acceleration_drive.resize(nv);
@@ -90,9 +92,78 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   for (int k = 0; k < nv; ++k) kp[k] = dofs[k].drive_stiffness, kd[k] = dofs[k].drive_damping;
   batch_.drive_stiffness.set_all(kp);
   batch_.drive_damping.set_all(kd);
+  const int candidates = plan.contacts ? set_up_contacts(copies, options.contacts, pairs) : 0;
   const int rows = static_cast<int>(row_specs_.size()), columns = static_cast<int>(column_dof_.size());
   scratch_ = std::make_unique<tbb::enumerable_thread_specific<Scratch>>(
-      [this, rows, columns] { return Scratch(km_, rows, columns); });
+      [this, rows, columns, candidates] { return Scratch(km_, rows, columns, contact_params_, candidates); });
+}
+
+// The pairs in the kernels' precision, the contact parameters, the per-copy
+// contact arrays; returns the most narrowphase points of one pair.
+template <class L>
+int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs) {
+  auto put_pose = [](const Eigen::Isometry3d& pose, T* out) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) out[3 * r + c] = static_cast<T>(pose.linear()(r, c));
+    for (int i = 0; i < 3; ++i) out[9 + i] = static_cast<T>(pose.translation()[i]);
+  };
+  int most = 0;
+  for (const ContactPair& pair : pairs.pairs) {
+    ContactPairSpec<T> spec;
+    spec.kind = pair.kind;
+    spec.ground = pair.a.shape == kGroundShape;
+    spec.body_a = pair.a.body;
+    spec.body_b = pair.b.body;
+    put_pose(pair.a.pose, spec.pose_a);
+    put_pose(pair.b.pose, spec.pose_b);
+    for (int i = 0; i < 3; ++i) {
+      spec.size_a[i] = static_cast<T>(pair.a.size[i]);
+      spec.size_b[i] = static_cast<T>(pair.b.size[i]);
+    }
+    spec.radius_a = static_cast<T>(pair.a.bound_radius);
+    spec.radius_b = static_cast<T>(pair.b.bound_radius);
+    spec.reach_a = static_cast<T>(pair.a.pose.translation().norm() + pair.a.bound_radius);
+    spec.reach_b = static_cast<T>(pair.b.pose.translation().norm() + pair.b.bound_radius);
+    spec.friction = static_cast<T>(pair.friction);
+    spec.restitution = static_cast<T>(pair.restitution);
+    spec.first_candidate = pair.first_candidate;
+    spec.candidates = pair_candidates(pair.kind);
+    most = std::max(most, spec.candidates);
+    contact_pairs_.push_back(spec);
+  }
+  ContactParams<T>& p = contact_params_;
+  p.capacity = settings.capacity;
+  p.rows_per_contact = settings.torsional_friction > 0 ? 4 : 3;
+  p.margin = static_cast<T>(settings.margin);
+  p.stiffness = static_cast<T>(settings.stiffness);
+  p.damping = static_cast<T>(settings.damping);
+  p.bounce_threshold = static_cast<T>(settings.bounce_threshold);
+  p.torsional = static_cast<T>(settings.torsional_friction);
+  p.error_reduction = static_cast<T>(options_.error_reduction);
+  const int C = p.capacity, k = p.rows_per_contact;
+  StepBatch<T>& B = batch_;
+  B.ground = BatchArray<T>(copies, 4, kWidth);
+  const Eigen::Vector3d n = settings.ground_normal.normalized();
+  B.ground.set_all(Eigen::Vector4d(n.x(), n.y(), n.z(), n.z() * settings.ground_height));
+  B.ground_friction = BatchArray<T>(copies, 1, kWidth, static_cast<T>(settings.ground_contact.friction));
+  B.contact_id = BatchArray<T>(copies, C, kWidth, T(-1));
+  B.contact_impulse = BatchArray<T>(copies, C * k, kWidth);
+  B.contact_point = BatchArray<T>(copies, 3 * C, kWidth);
+  B.contact_normal = BatchArray<T>(copies, 3 * C, kWidth);
+  B.contact_separation = BatchArray<T>(copies, C, kWidth);
+  B.contact_count = BatchArray<T>(copies, 1, kWidth);
+  B.contact_dropped = BatchArray<T>(copies, 1, kWidth);
+  B.contact_overflow_steps = BatchArray<T>(copies, 1, kWidth);
+  return most;
+}
+
+template <class L>
+ContactArrays<lane::scalar_t<L>> StepEngine<L>::contact_arrays(int block) {
+  StepBatch<T>& B = batch_;
+  return {B.ground.block(block),          B.ground_friction.block(block),   B.contact_id.block(block),
+          B.contact_impulse.block(block), B.contact_point.block(block),     B.contact_normal.block(block),
+          B.contact_separation.block(block), B.contact_count.block(block), B.contact_dropped.block(block),
+          B.contact_overflow_steps.block(block)};
 }
 
 // The row stages are laid out once, at construction; the others may change.
@@ -172,9 +243,21 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
     if (trapezoid) heun_velocity(in, tau_ff, terms_in, q, h, s);
     const bool tgs = options_.solver == SolverType::TGS;
     s.rows_at_rest = lane::mask_t<L>(true);
-    if (!row_specs_.empty()) solve_rows(block, q, h, s);
+    const bool contacts = !contact_pairs_.empty();
+    // rows see the step's q: the trapezoid's predictor moved the joint transforms
+    if (trapezoid && (contacts || !row_specs_.empty())) joint_transforms<L>(km_, q, s.ws);
+    s.contacts.slots = 0;
+    if (contacts) {
+      world_transforms<L>(km_, s.ws);
+      detect_contacts<L>(km_, contact_pairs_, contact_params_, fields(s.u1), h, s.ws, contact_arrays(block),
+                         s.contacts);
+    }
+    if (!row_specs_.empty() || s.contacts.slots > 0) solve_rows(block, q, h, s);
     else if (tgs)
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
+    if (contacts)
+      store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
+                        contact_arrays(block));
     // positions: TGS by its substep displacement; otherwise by the
     // integrator's velocity: semi-implicit Euler v1; trapezoid (v0 + v1)/2,
     // except in copies whose rows act this step, which move with v1 so that
@@ -214,6 +297,9 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
     T* impulse = B.impulse.block(block);
     for (int r = 0; r < B.impulse.size(); ++r)
       lane::store(lane::select(restart, zero, lane::load<L>(impulse + r * W)), impulse + r * W);
+    T* contact_id = B.contact_id.block(block);  // no warm start for the contacts either
+    for (int c = 0; c < B.contact_id.size(); ++c)
+      lane::store(lane::select(restart, L(T(-1)), lane::load<L>(contact_id + c * W)), contact_id + c * W);
   } else {
     for (int i = 0; i < nq; ++i) lane::store(lane::load<L>(q_next + i * W), q + i * W);
     for (int k = 0; k < nv; ++k) lane::store(s.u1[k], v + k * W);
@@ -286,33 +372,46 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
   const int nv = km_.nv;
   JointRowScratch<L>& rs = s.rows;
   RowBlock<L>& rows = rs.rows;
+  ContactScratch<L>& contacts = s.contacts;
+  const int mj = static_cast<int>(row_specs_.size()), mc = contacts.k * contacts.slots;
+  rows.m = mj + mc;
   const T erp = static_cast<T>(options_.error_reduction);
   const bool tgs = options_.solver == SolverType::TGS;
   // Lanes where no row needs an impulse keep a zero impulse exactly; a
   // block where all lanes are so skips the rows (the same result, bit for
   // bit, as solving).
-  const lane::mask_t<L> rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), h, erp);
+  lane::mask_t<L> rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), h, erp);
+  if (mc > 0) {
+    build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), h, mj, contacts, rows);
+    rest = rest && contact_rows_at_rest<L>(rows, mj, contacts);
+  }
   s.rows_at_rest = rest;
   T* impulse = batch_.impulse.block(block);
   const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
   if (!lane::all<L>(rest)) {
     build_joint_rows<L>(row_specs_, q, s.u1.data(), h, erp, rs);
-    for (int r = 0; r < rows.m; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
+    for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
+    for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
     joint_row_delassus<L>(km_, row_specs_, column_dof_, batch_.state.inertia.block(block),
                           s.terms.implicit_diagonal.data(), s.ws, rs);
-    if (tgs) tgs_solve(rows, options_.iterations, h, erp);
+    if (mc > 0)
+      contact_delassus<L>(km_, contact_params_, reinterpret_cast<const T*>(s.ws.matrix.data()), row_specs_, rs.sigma,
+                          h, mj, contacts, rows);
+    if (tgs) tgs_solve(rows, options_.iterations, h);
     else pgs_solve(rows, options_.iterations);
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
     add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());
+    add_contact_impulses<L>(contacts, rows.lambda.data() + mj, s.u1.data());
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
     if (tgs) {
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
       add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
+      add_contact_impulses<L>(contacts, rows.lambda_sum.data() + mj, s.displacement.data());
       for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
     }
-    for (int r = 0; r < rows.m; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);
+    for (int r = 0; r < mj; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);
   } else {
-    for (int r = 0; r < rows.m; ++r) lane::store(zero, impulse + r * W);
+    for (int r = 0; r < mj; ++r) lane::store(zero, impulse + r * W);
     if (tgs)
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
   }

@@ -4,8 +4,10 @@
 // and lanes; this header is internal to batch/.
 #pragma once
 
+#include "batch/contact_pairs.hpp"
 #include "batch/simulator.hpp"
 #include "kernels/aba.hpp"
+#include "kernels/contact_rows.hpp"
 #include "kernels/joint_rows.hpp"
 #include "kernels/joint_terms.hpp"
 
@@ -18,6 +20,7 @@ struct StepPlan {
   bool drives = false, damping = false, springs = false, soft_limits = false, stribeck = false;
   bool wrenches = false;
   bool hard_limits = false, velocity_limits = false, coulomb_friction = false;
+  bool contacts = false;
 };
 
 struct Simulator::Engine {
@@ -36,13 +39,15 @@ class StepEngine final : public Simulator::Engine {
   using T = lane::scalar_t<L>;
   static constexpr int kWidth = static_cast<int>(lane::width_v<L>);
 
+  // pairs: the scene's candidate shape pairs (used when plan.contacts).
   StepEngine(const Model& model, int copies, const StepOptions& options, const std::vector<DofSettings>& dofs,
-             const StepPlan& plan);
+             const StepPlan& plan, const ContactPairs& pairs);
 
   void step(int substeps, double dt) override;
   void set_plan(const StepPlan& plan) override;
   int copies() const override { return batch_.copies(); }
   int rows() const override { return static_cast<int>(row_specs_.size()); }
+  int contact_rows_per_point() const { return contact_params_.rows_per_contact; }
   std::size_t bytes_per_copy() const override { return batch_.bytes_per_copy(); }
 
   StepBatch<T>& batch() { return batch_; }
@@ -53,14 +58,15 @@ class StepEngine final : public Simulator::Engine {
   struct Scratch {
     Workspace<L> ws;
     JointTermScratch<L> terms;
-    JointRowScratch<L> rows;
+    JointRowScratch<L> rows;  // joint rows first, then contact rows
+    ContactScratch<L> contacts;
     std::vector<L> u0, u1, u_free, qacc, displacement;  // (nv)
     lane::mask_t<L> rows_at_rest = lane::mask_t<L>(true);  // lanes where no solver row acts this step
     // [field][lane] arrays, as lanes for their alignment; read through fields()
     std::vector<L> q_next;          // (nq) the step's new positions
     std::vector<L> q_stage, v_stage;  // RK4 stage state
     std::vector<L> v_sum, a_sum;      // RK4 weighted sums
-    Scratch(const KernelModel<T>& km, int rows, int columns);
+    Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
 
   static T* fields(std::vector<L>& lanes) { return reinterpret_cast<T*>(lanes.data()); }
@@ -74,8 +80,11 @@ class StepEngine final : public Simulator::Engine {
   // Trapezoid: s.u1 from v0 + h a1 to the average of two accelerations.
   void heun_velocity(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in, const T* q0, T h,
                      Scratch& s);
-  // Solver rows: s.u1 from s.u1 (= u*), and the displacement for TGS.
+  // Solver rows (joint rows, then the contacts found): s.u1 from s.u1
+  // (= u*), and the displacement for TGS.
   void solve_rows(int block, const T* q, T h, Scratch& s);
+  ContactArrays<T> contact_arrays(int block);
+  int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
   void record_applied(int block, T h, Scratch& s);
 
   StepOptions options_;
@@ -84,6 +93,8 @@ class StepEngine final : public Simulator::Engine {
   JointTermModel<T> jm_;
   std::vector<JointRowSpec<T>> row_specs_;
   std::vector<int> column_dof_;
+  std::vector<ContactPairSpec<T>> contact_pairs_;  // empty unless plan.contacts
+  ContactParams<T> contact_params_;
   StepBatch<T> batch_;
   std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
 };

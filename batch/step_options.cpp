@@ -24,6 +24,7 @@ const char* stage_name(Stage stage) {
     case Stage::HardLimits: return "hard limits";
     case Stage::VelocityLimits: return "velocity limits";
     case Stage::CoulombFriction: return "Coulomb friction";
+    case Stage::Contacts: return "contacts";
     case Stage::Count: break;
   }
   return "?";

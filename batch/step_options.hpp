@@ -3,6 +3,7 @@
 // limits), and the stages of the pipeline that a scene switches on.
 #pragma once
 
+#include "batch/contact_settings.hpp"
 #include "batch/precision.hpp"
 #include "layout/model.hpp"
 
@@ -76,6 +77,7 @@ enum class Stage : int {
   HardLimits,      // solver rows: one-sided position limits
   VelocityLimits,  // solver rows: |v| bounds
   CoulombFriction, // solver rows: boxed friction impulses
+  Contacts,        // collision detection and contact rows
   Count
 };
 inline constexpr int kStageCount = static_cast<int>(Stage::Count);
@@ -101,6 +103,7 @@ struct StepOptions {
   bool implicit_gyroscopic = true;
   bool reset_on_fault = false;  // put a faulted copy back to its initial state
   bool record_applied_torque = false;  // keep RaiSim's per-source torque of the last step
+  ContactSettings contacts;  // ground, static boxes, filters, contact parameters
   std::array<StageMode, kStageCount> stages{};  // all Auto
 
   StepOptions& force(Stage stage, StageMode mode) {

@@ -51,9 +51,10 @@ std::vector<DofSettings> scene_dofs(const Model& model, Stage unused) {
 }
 
 // The scene's simulator with per-copy states, torques, targets and (unless
-// unused) drive gains and link wrenches, stepped kSteps times.
-Simulator run_scene(const Model& model, Stage unused, const StepOptions& options) {
+// unused) drive gains, link wrenches and the ground, stepped kSteps times.
+Simulator run_scene(const Model& model, Stage unused, StepOptions options) {
   const std::vector<DofSettings> dofs = scene_dofs(model, unused);
+  options.contacts.ground = unused != Stage::Contacts;
   Simulator sim(model, kCopies, options, dofs);
   for (int c = 0; c < kCopies; ++c) {
     test::CopyInputs in = test::random_copy_inputs(model, dofs, 300u + static_cast<unsigned>(c), 2.0);

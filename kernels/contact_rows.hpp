@@ -1,0 +1,408 @@
+// Contacts over one block: the narrowphase of every candidate pair, the
+// points compacted per lane into a fixed number of contact slots, and each
+// slot's solver rows (docs/contacts.md):
+//   normal   n . (v_B - v_A) at the point, lambda >= 0, positional (the
+//            separation e is its error: speculative -e/h while apart, a
+//            share of the penetration per step when rigid, the
+//            spring-damper law when compliant; restitution lifts the
+//            target to the bounce speed);
+//   friction t1 and t2, a cone pair |lambda_t| <= mu lambda_n;
+//   torsion  n . (w_B - w_A), |lambda| <= torsional * lambda_n (optional).
+// A slot holds, per lane, the lane's c-th contact; lanes with fewer contacts
+// leave it empty (zero Jacobian, impulse box [0, 0]), so no lane's result
+// depends on another's.
+#pragma once
+
+#include "kernels/collision.hpp"
+#include "kernels/crba.hpp"
+#include "kernels/jacobian.hpp"
+#include "kernels/joint_rows.hpp"
+#include "kernels/pair_kind.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <vector>
+
+namespace lockstep {
+
+// One candidate pair in the kernels' precision.
+template <class T>
+struct ContactPairSpec {
+  PairKind kind;
+  bool ground = false;     // A is the copy's ground plane
+  int body_a = -1, body_b = -1;  // -1: fixed in the world
+  T pose_a[12], pose_b[12];  // shape frame in the body frame (world if fixed): R row-major, then p
+  T size_a[3], size_b[3];    // Shape::size convention
+  T radius_a = 0, radius_b = 0;  // bounding spheres about the shape origins
+  T reach_a = 0, reach_b = 0;    // |shape origin| + radius, on the body: a point's distance from the body origin
+  T friction = 0, restitution = 0;  // combined (for the ground: B's own friction)
+  int first_candidate = 0, candidates = 0;
+};
+
+template <class T>
+struct ContactParams {
+  int capacity = 16;        // slots per copy
+  int rows_per_contact = 3; // 3, or 4 with torsional friction
+  T margin = 0;
+  T stiffness = 0, damping = 0;  // N/m, N s/m; stiffness 0: rigid
+  T bounce_threshold = 0;
+  T torsional = 0;
+  T error_reduction = 0;
+};
+
+// The contacts of one block.
+template <class L>
+struct ContactScratch {
+  using T = lane::scalar_t<L>;
+  int capacity, k, nv;
+  int slots = 0;  // slots in use in this block: at least the most contacts of any lane, at most capacity
+  L count;        // per lane: contact points found this step (above capacity: overflow)
+  std::vector<ContactCandidate<L>> candidates;  // of one pair
+  std::vector<L> linear_speed, angular_speed;   // (nbody) |v| of the body origin and |w|, free motion
+  std::vector<L> candidate_J;                   // (k x nv) rows of one point
+  // per slot
+  std::vector<L> id, separation, mu, restitution;
+  std::vector<Vec3<L>> point, normal;
+  std::vector<L> J;     // (capacity x k x nv) rows: normal, t1, t2[, torsion]
+  std::vector<L> X;     // (capacity x k x nv) Mt^-1 J^T
+  std::vector<L> warm;  // (capacity x k) last step's impulses of the same points
+
+  ContactScratch(int capacity_, int k_, int nv_, int nbody, int max_candidates)
+      : capacity(capacity_), k(k_), nv(nv_), count(T(0)), candidates(max_candidates), candidate_J(k_ * nv_),
+        id(capacity_), separation(capacity_), mu(capacity_), restitution(capacity_), point(capacity_),
+        normal(capacity_), J(capacity_ * k_ * nv_), X(capacity_ * k_ * nv_), warm(capacity_ * k_) {
+    linear_speed.resize(nbody);
+    angular_speed.resize(nbody);
+  }
+};
+
+// The per-copy arrays of a block that contacts read and write, [field][lane].
+template <class T>
+struct ContactArrays {
+  const T* ground;           // (4) plane normal xyz and offset d: the plane n . x = d
+  const T* ground_friction;  // (1)
+  T* id;          // (capacity) candidate number of each slot's point, -1 when empty
+  T* impulse;     // (capacity x k) the solver's impulses: normal, t1, t2[, torsion]
+  T* point;       // (capacity x 3) world, at the start of the step
+  T* normal;      // (capacity x 3) world, from A to B
+  T* separation;  // (capacity)
+  T* count;       // (1) contacts kept (at most capacity)
+  T* dropped;     // (1) contacts found beyond capacity this step
+  T* overflow_steps;  // (1) steps with dropped contacts, since the last reset
+};
+
+// Two unit tangents completing the normal n to a right-handed frame
+// (n, t1, t2): t1 from the world axis x, or y where n is within 55 degrees
+// of x, so that the frame is the same for the same normal in every lane and
+// every step (friction's warm start needs that).
+template <class L>
+inline void tangent_frame(const Vec3<L>& n, Vec3<L>& t1, Vec3<L>& t2) {
+  using T = lane::scalar_t<L>;
+  const auto use_y = lane::abs(n.x) > L(T(0.57735));
+  const L ax = lane::select(use_y, L(T(0)), L(T(1))), ay = lane::select(use_y, L(T(1)), L(T(0)));
+  const L an = ax * n.x + ay * n.y;
+  const Vec3<L> t = {ax - an * n.x, ay - an * n.y, -(an * n.z)};
+  t1 = spatial::scale(L(T(1)) / lane::sqrt(spatial::dot(t, t)), t);
+  t2 = spatial::cross(n, t1);
+}
+
+namespace contact_detail {
+
+template <class L>
+Transform<L> broadcast_pose(const lane::scalar_t<L>* pose) {
+  Transform<L> X;
+  for (int i = 0; i < 9; ++i) X.R.m[i] = L(pose[i]);
+  X.p = {L(pose[9]), L(pose[10]), L(pose[11])};
+  return X;
+}
+
+// A shape's world pose: its body's world transform times its pose on the body.
+template <class L>
+Transform<L> shape_pose(const Workspace<L>& ws, int body, const lane::scalar_t<L>* pose) {
+  const Transform<L> local = broadcast_pose<L>(pose);
+  return body < 0 ? local : spatial::compose(ws.world[body], local);
+}
+
+// The narrowphase of one pair into out[0, pair.candidates).
+template <class L>
+void collide(const ContactPairSpec<lane::scalar_t<L>>& pair, const Vec3<L>& plane_n, const L& plane_d,
+             const Transform<L>& A, const Transform<L>& B, ContactCandidate<L>* out) {
+  const L a[3] = {L(pair.size_a[0]), L(pair.size_a[1]), L(pair.size_a[2])};
+  const L b[3] = {L(pair.size_b[0]), L(pair.size_b[1]), L(pair.size_b[2])};
+  switch (pair.kind) {
+    case PairKind::PlaneSphere: collide_plane_sphere<L>(plane_n, plane_d, B, b[0], out); break;
+    case PairKind::PlaneCapsule: collide_plane_capsule<L>(plane_n, plane_d, B, b[0], b[1], out); break;
+    case PairKind::PlaneBox: collide_plane_box<L>(plane_n, plane_d, B, b[0], b[1], b[2], out); break;
+    case PairKind::PlaneCylinder: collide_plane_cylinder<L>(plane_n, plane_d, B, b[0], b[1], out); break;
+    case PairKind::SphereSphere: collide_sphere_sphere<L>(A, a[0], B, b[0], out); break;
+    case PairKind::SphereCapsule: collide_sphere_capsule<L>(A, a[0], B, b[0], b[1], out); break;
+    case PairKind::SphereBox: collide_sphere_box<L>(A, a[0], B, b[0], b[1], b[2], out); break;
+    case PairKind::CapsuleCapsule: collide_capsule_capsule<L>(A, a[0], a[1], B, b[0], b[1], out); break;
+    case PairKind::CapsuleBox: collide_capsule_box<L>(A, a[0], a[1], B, b[0], b[1], b[2], out); break;
+    case PairKind::BoxBox: collide_box_box<L>(A, a[0], a[1], a[2], B, b[0], b[1], b[2], out); break;
+  }
+}
+
+// Rows (k x nv) of the relative motion of B against A at the world point x:
+// n, t1, t2 along the linear velocity, then n along the angular velocity.
+template <class L>
+void contact_jacobian(const KernelModel<lane::scalar_t<L>>& km, const Workspace<L>& ws, int body_a, int body_b,
+                      const Vec3<L>& x, const Vec3<L> (&dirs)[3], int k, L* out) {
+  using T = lane::scalar_t<L>;
+  const int nv = km.nv;
+  for (int i = 0; i < k * nv; ++i) out[i] = L(T(0));
+  auto add = [&](int body, bool minus) {
+    for_each_point_column<L>(km, ws, body, x, [&](int col, const Vec3<L>& v, const Vec3<L>& w) {
+      for (int r = 0; r < k; ++r) {
+        const L e = r < 3 ? spatial::dot(dirs[r], v) : spatial::dot(dirs[0], w);
+        out[r * nv + col] = minus ? out[r * nv + col] - e : out[r * nv + col] + e;
+      }
+    });
+  };
+  if (body_b >= 0) add(body_b, false);
+  if (body_a >= 0) add(body_a, true);
+}
+
+template <class L>
+L dot_n(const L* a, const L* b, int n) {
+  L sum = a[0] * b[0];
+  for (int i = 1; i < n; ++i) sum = lane::fmadd(a[i], b[i], sum);
+  return sum;
+}
+
+}  // namespace contact_detail
+
+// Finds the block's contacts: every pair's points closer than the margin
+// plus the distance the two shapes may close within the step h at the free
+// velocity u (a bound from their bodies' speeds, so that a fast body meets
+// the row before it passes through: speculative contact), each with its
+// rows' Jacobian, put into the lane's next free slot. A pair whose bounding
+// spheres are farther apart than that in every lane is skipped, and so is
+// a point no lane has. Needs ws.local and ws.world at the step's q;
+// overwrites ws.velocity.
+template <class L>
+void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector<ContactPairSpec<lane::scalar_t<L>>>& pairs,
+                     const ContactParams<lane::scalar_t<L>>& p, const lane::scalar_t<L>* u, lane::scalar_t<L> h,
+                     Workspace<L>& ws, const ContactArrays<lane::scalar_t<L>>& arrays, ContactScratch<L>& s) {
+  using T = lane::scalar_t<L>;
+  using namespace contact_detail;
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv, k = s.k;
+  const L zero(T(0)), one(T(1)), margin(p.margin);
+  const Vec3<L> plane_n = {lane::load<L>(arrays.ground), lane::load<L>(arrays.ground + W),
+                           lane::load<L>(arrays.ground + 2 * W)};
+  const L plane_d = lane::load<L>(arrays.ground + 3 * W);
+  const L ground_friction = lane::load<L>(arrays.ground_friction);
+  body_velocities<L>(km, u, ws);
+  for (int b = 0; b < km.nbody; ++b) {
+    const Vec3<L> v = ws.velocity[b].lin(), w = ws.velocity[b].ang();
+    s.linear_speed[b] = lane::sqrt(spatial::dot(v, v));
+    s.angular_speed[b] = lane::sqrt(spatial::dot(w, w));
+  }
+  auto travel = [&](int body, T reach) {  // how far a point of the shape may move in h
+    return body < 0 ? zero : L(h) * lane::fmadd(s.angular_speed[body], L(reach), s.linear_speed[body]);
+  };
+  s.count = zero;
+  s.slots = 0;
+  for (const ContactPairSpec<T>& pair : pairs) {
+    const Transform<L> B = shape_pose<L>(ws, pair.body_b, pair.pose_b);
+    Transform<L> A = B;
+    const L reach = margin + travel(pair.body_b, pair.reach_b) + (pair.ground ? zero : travel(pair.body_a, pair.reach_a));
+    if (pair.ground) {
+      if (lane::all<L>(spatial::dot(plane_n, B.p) - plane_d - L(pair.radius_b) > reach)) continue;
+    } else {
+      A = shape_pose<L>(ws, pair.body_a, pair.pose_a);
+      const Vec3<L> d = spatial::sub(B.p, A.p);
+      const L apart = L(pair.radius_a + pair.radius_b) + reach;
+      if (lane::all<L>(spatial::dot(d, d) > apart * apart)) continue;
+    }
+  collide<L>(pair, plane_n, plane_d, A, B, s.candidates.data());
+    const L mu = pair.ground ? L(T(0.5)) * (L(pair.friction) + ground_friction) : L(pair.friction);
+    for (int c = 0; c < pair.candidates; ++c) {
+      const ContactCandidate<L>& point = s.candidates[c];
+      const auto active = point.separation < reach;
+      if (lane::all<L>(!active)) continue;
+      Vec3<L> dirs[3];
+      dirs[0] = point.normal;
+      tangent_frame(point.normal, dirs[1], dirs[2]);
+      contact_jacobian<L>(km, ws, pair.ground ? -1 : pair.body_a, pair.body_b, point.point, dirs, k,
+                          s.candidate_J.data());
+      if (s.slots < s.capacity) {  // a slot no lane has used yet this step
+        const int fresh = s.slots;
+        s.id[fresh] = L(T(-1));
+        s.separation[fresh] = s.mu[fresh] = s.restitution[fresh] = zero;
+        s.point[fresh] = s.normal[fresh] = {zero, zero, zero};
+        for (int i = 0; i < k * nv; ++i) s.J[fresh * k * nv + i] = zero;
+        ++s.slots;
+      }
+      const L id(static_cast<T>(pair.first_candidate + c));
+      for (int slot = 0; slot < s.slots; ++slot) {
+        const auto here = active && (s.count == L(static_cast<T>(slot)));
+        s.id[slot] = lane::select(here, id, s.id[slot]);
+        s.separation[slot] = lane::select(here, point.separation, s.separation[slot]);
+        s.mu[slot] = lane::select(here, mu, s.mu[slot]);
+        s.restitution[slot] = lane::select(here, L(pair.restitution), s.restitution[slot]);
+        Vec3<L>& x = s.point[slot];
+        x = {lane::select(here, point.point.x, x.x), lane::select(here, point.point.y, x.y),
+             lane::select(here, point.point.z, x.z)};
+        Vec3<L>& n = s.normal[slot];
+        n = {lane::select(here, point.normal.x, n.x), lane::select(here, point.normal.y, n.y),
+             lane::select(here, point.normal.z, n.z)};
+        L* J = &s.J[slot * k * nv];
+        for (int i = 0; i < k * nv; ++i) J[i] = lane::select(here, s.candidate_J[i], J[i]);
+      }
+      s.count = s.count + lane::select(active, one, zero);
+    }
+  }
+}
+
+// The slots' rows into rows [first, first + k slots) of the block, from the
+// free velocity u (nv), and each slot's warm start: last step's impulses of
+// the point with the same candidate number. h is the (sub)step.
+template <class L>
+void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const ContactArrays<lane::scalar_t<L>>& arrays,
+                        const L* u, lane::scalar_t<L> h, int first, ContactScratch<L>& s, RowBlock<L>& rows) {
+  using T = lane::scalar_t<L>;
+  using contact_detail::dot_n;
+  constexpr std::size_t W = lane::width_v<L>;
+  const T inf = std::numeric_limits<T>::infinity();
+  const int nv = s.nv, k = s.k;
+  const L zero(T(0)), inv_h(T(1) / h);
+  // rigid: a share error_reduction of the penetration per step; compliant:
+  // the implicit spring-damper f = -k e - c v gives the target -e k/(k h + c)
+  const L rate(p.stiffness > 0 ? p.stiffness / (p.stiffness * h + p.damping) : p.error_reduction / h);
+  for (int c = 0; c < s.slots; ++c) {
+    const auto active = s.count > L(static_cast<T>(c));
+    const L* J = &s.J[c * k * nv];
+    const int r = first + c * k;
+    const L vn = dot_n(J, u, nv);
+    const L e = lane::select(active, s.separation[c], zero);
+    // an impact faster than the bounce threshold, reached within the step,
+    // leaves at the restitution share of its approach speed
+    const auto bounce = active && (s.restitution[c] > zero) && (vn < L(-p.bounce_threshold)) &&
+                        (lane::fmadd(L(h), vn, e) < zero);
+    const L floor = lane::select(bounce, -s.restitution[c] * vn, L(-inf));
+    rows.v_free[r] = vn;
+    rows.error[r] = e;
+    rows.rate[r] = rate;
+    rows.floor[r] = floor;
+    rows.target[r] = rows.target_hi[r] = lane::max(positional_target(e, inv_h, rate), floor);
+    rows.lo[r] = zero;
+    rows.hi[r] = lane::select(active, L(inf), zero);
+    rows.positional[r] = 1;
+    rows.bound_row[r] = -1;
+    rows.cone[r] = 0;
+    for (int i = 1; i < k; ++i) {
+      rows.v_free[r + i] = dot_n(J + i * nv, u, nv);
+      rows.error[r + i] = rows.target[r + i] = rows.target_hi[r + i] = zero;
+      rows.positional[r + i] = 0;
+      rows.bound_row[r + i] = r;
+      rows.mu[r + i] = i < 3 ? s.mu[c] : L(p.torsional);
+      rows.cone[r + i] = i == 1;
+    }
+    // warm start: the same point's impulses, if some slot held it last step
+    for (int i = 0; i < k; ++i) s.warm[c * k + i] = zero;
+    for (int old = 0; old < s.capacity; ++old) {
+      const L old_id = lane::load<L>(arrays.id + old * W);
+      if (lane::all<L>(old_id < zero)) break;  // slots fill in order: none further
+      const auto same = active && (old_id == s.id[c]);
+      for (int i = 0; i < k; ++i)
+        s.warm[c * k + i] = lane::select(same, lane::load<L>(arrays.impulse + (old * k + i) * W), s.warm[c * k + i]);
+    }
+  }
+}
+
+// Per lane: true where no contact row needs an impulse (the normal rows
+// decide; friction and torsion lean on them).
+template <class L>
+lane::mask_t<L> contact_rows_at_rest(const RowBlock<L>& rows, int first, const ContactScratch<L>& s) {
+  lane::mask_t<L> rest(true);
+  for (int c = 0; c < s.slots; ++c) {
+    const int r = first + c * s.k;
+    rest = rest && row_at_rest(rows.v_free[r], rows.target[r], rows.target_hi[r], rows.lo[r], rows.hi[r],
+                               rows.error[r], true);
+  }
+  return rest;
+}
+
+// The contact rows' blocks of D = J Mt^-1 J^T, with Mt factored in H
+// (joint_row_delassus): X = Mt^-1 J^T per row, D between contact rows J X,
+// between a joint row (sigma e_dof) and a contact row sigma X[dof]. A
+// compliant normal row adds its compliance 1 / (h (k h + c)) to its
+// diagonal; an empty slot's rows, and rows with no mobility, get a unit
+// diagonal (their impulse is 0).
+template <class L>
+void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactParams<lane::scalar_t<L>>& p,
+                      const lane::scalar_t<L>* H, const std::vector<JointRowSpec<lane::scalar_t<L>>>& joint_specs,
+                      const std::vector<L>& sigma, lane::scalar_t<L> h, int first, ContactScratch<L>& s,
+                      RowBlock<L>& rows) {
+  using T = lane::scalar_t<L>;
+  using contact_detail::dot_n;
+  const int nv = s.nv, k = s.k, m = rows.m, mc = k * s.slots;
+  for (int i = 0; i < mc; ++i) {
+    L* X = &s.X[i * nv];
+    for (int j = 0; j < nv; ++j) X[j] = s.J[i * nv + j];
+    ltdl_solve<L>(km, H, reinterpret_cast<T*>(X));
+  }
+  for (int i = 0; i < mc; ++i)
+    for (int j = i; j < mc; ++j) rows.D[(first + i) * m + first + j] = rows.D[(first + j) * m + first + i] =
+                                     dot_n(&s.J[i * nv], &s.X[j * nv], nv);
+  for (int r = 0; r < first; ++r)
+    for (int i = 0; i < mc; ++i)
+      rows.D[r * m + first + i] = rows.D[(first + i) * m + r] = sigma[r] * s.X[i * nv + joint_specs[r].dof];
+  const L compliance(p.stiffness > 0 ? T(1) / (h * (p.stiffness * h + p.damping)) : T(0));
+  const L zero(T(0)), one(T(1));
+  for (int c = 0; c < s.slots; ++c) {
+    const auto active = s.count > L(static_cast<T>(c));
+    // a row the bodies cannot move along (J = 0: a fixed-base link's point
+    // moving only in the plane of the normal) takes no impulse
+    const int r = first + c * k;
+    rows.hi[r] = lane::select(rows.D[r * m + r] > zero, rows.hi[r], zero);
+    for (int i = 0; i < k; ++i) {
+      L& d = rows.D[(r + i) * m + r + i];
+      d = lane::select(active && d > zero, i == 0 ? d + compliance : d, one);
+    }
+  }
+}
+
+// out[j] += sum over contact rows i of x_i X_i[j]: the velocity change of
+// the contact impulses x (or the displacement of TGS's lambda_sum).
+template <class L>
+void add_contact_impulses(const ContactScratch<L>& s, const L* x, L* out) {
+  const int nv = s.nv, mc = s.k * s.slots;
+  for (int i = 0; i < mc; ++i)
+    for (int j = 0; j < nv; ++j) out[j] = lane::fmadd(x[i], s.X[i * nv + j], out[j]);
+}
+
+// The slots, their impulses x (rows [first, ...); zero where `rest`) and
+// the counts into the copies' arrays.
+template <class L>
+void store_contacts(const ContactScratch<L>& s, const L* x, const lane::mask_t<L>& rest,
+                    const ContactArrays<lane::scalar_t<L>>& arrays) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const int k = s.k;
+  const L zero(T(0)), none(T(-1)), capacity(static_cast<T>(s.capacity));
+  for (int c = 0; c < s.capacity; ++c) {
+    const bool used = c < s.slots;
+    const auto active = used ? s.count > L(static_cast<T>(c)) : lane::mask_t<L>(false);
+    lane::store(used ? lane::select(active, s.id[c], none) : none, arrays.id + c * W);
+    for (int i = 0; i < k; ++i)
+      lane::store(used ? lane::select(rest, zero, x[c * k + i]) : zero, arrays.impulse + (c * k + i) * W);
+    const Vec3<L> point = used ? s.point[c] : Vec3<L>{zero, zero, zero};
+    const Vec3<L> normal = used ? s.normal[c] : Vec3<L>{zero, zero, zero};
+    const L e[7] = {point.x, point.y, point.z, normal.x, normal.y, normal.z, used ? s.separation[c] : zero};
+    for (int j = 0; j < 3; ++j) {
+      lane::store(e[j], arrays.point + (c * 3 + j) * W);
+      lane::store(e[3 + j], arrays.normal + (c * 3 + j) * W);
+    }
+    lane::store(e[6], arrays.separation + c * W);
+  }
+  const L dropped = lane::max(s.count - capacity, zero);
+  lane::store(lane::min(s.count, capacity), arrays.count);
+  lane::store(dropped, arrays.dropped);
+  const L steps = lane::load<L>(arrays.overflow_steps);
+  lane::store(lane::select(dropped > zero, steps + L(T(1)), steps), arrays.overflow_steps);
+}
+
+}  // namespace lockstep

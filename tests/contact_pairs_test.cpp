@@ -1,0 +1,195 @@
+// Which shapes touch (batch/contact_pairs.hpp): the ground, adjacency,
+// fused links, shapeless links between, self-collision, layers and named
+// overrides; meshes noted; bad settings named; overflow counted; no
+// collision code without shapes; a saved state with its warm start replays.
+#include "tests/contact_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+namespace lockstep::test {
+namespace {
+
+// A fixed-base chain base - a - b - c - d (revolute about y), each link
+// with a sphere (c without one when bare_c), and link e fused to d by a
+// fixed joint, with a box.
+Model chain(bool bare_c) {
+  ArticulationSpec spec;
+  spec.name = "chain";
+  LinkSpec base;
+  base.name = "base";
+  spec.links.push_back(base);
+  std::string parent = "base";
+  for (const char* name : {"a", "b", "c", "d"}) {
+    LinkSpec link = joint_link(name, parent, JointType::Revolute, Eigen::Vector3d::UnitY(), Eigen::Vector3d(0, 0, -0.1));
+    link.inertial.mass = 1.0;
+    link.inertial.inertia = Eigen::Matrix3d::Identity() * 1e-3;
+    if (!(bare_c && std::string(name) == "c")) {
+      Shape s;
+      s.type = ShapeType::Sphere;
+      s.size = Eigen::Vector3d(0.03, 0, 0);
+      link.shapes.push_back(s);
+    }
+    spec.links.push_back(link);
+    parent = name;
+  }
+  LinkSpec e = joint_link("e", "d", JointType::Fixed, Eigen::Vector3d::UnitY(), Eigen::Vector3d(0, 0, -0.05));
+  Shape s;
+  s.type = ShapeType::Box;
+  s.size = Eigen::Vector3d::Constant(0.02);
+  e.shapes.push_back(s);
+  spec.links.push_back(e);
+  ModelBuilder builder;
+  builder.add_articulation(spec);
+  return builder.finalize();
+}
+
+// The frame-name pairs of the candidate pairs, sorted, "ground" for the plane.
+std::vector<std::pair<std::string, std::string>> pair_names(const Model& model, const ContactSettings& settings) {
+  std::vector<std::pair<std::string, std::string>> out;
+  auto name = [&](const PairSide& side) {
+    return side.shape == kGroundShape ? std::string("ground") : model.frame_name[model.shapes[side.shape].frame];
+  };
+  for (const ContactPair& p : build_contact_pairs(model, settings).pairs) {
+    std::string x = name(p.a), y = name(p.b);
+    if (y < x) std::swap(x, y);
+    out.emplace_back(x, y);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+using Names = std::vector<std::pair<std::string, std::string>>;
+
+TEST(ContactPairs, SelfCollisionSkipsAdjacentFusedAndShapelessLinks) {
+  ContactSettings s;
+  s.self_collision = {true};
+  // a-b, b-c, c-d and c-e are adjacent (e is fused into d), d-e one body: left out
+  EXPECT_EQ(pair_names(chain(false), s), (Names{{"a", "c"}, {"a", "d"}, {"a", "e"}, {"b", "d"}, {"b", "e"}}));
+  // with c shapeless, b and d are joined only through it: left out too
+  EXPECT_EQ(pair_names(chain(true), s), (Names{{"a", "d"}, {"a", "e"}}));
+  s.self_collision = {false};
+  EXPECT_TRUE(pair_names(chain(false), s).empty());
+}
+
+TEST(ContactPairs, NamedPairsOverrideAndLayersFilter) {
+  const Model model = chain(false);
+  ContactSettings s;
+  s.enabled_pairs = {{"a", "b"}};  // adjacent, and self-collision off: enabled by name
+  EXPECT_EQ(pair_names(model, s), (Names{{"a", "b"}}));
+  s.self_collision = {true};
+  s.disabled_pairs = {{"e", "a"}, {"c", "a"}};
+  EXPECT_EQ(pair_names(model, s), (Names{{"a", "b"}, {"a", "d"}, {"b", "d"}, {"b", "e"}}));
+  // the ground touches every moving shape whose layers meet its mask
+  s = ContactSettings{};
+  s.ground = true;
+  s.shapes.assign(model.shapes.size(), ShapeContact{});
+  s.shapes[0].layers = 2;              // a's sphere
+  s.ground_contact.collides_with = 1;  // the ground meets layer 1 only
+  EXPECT_EQ(pair_names(model, s), (Names{{"b", "ground"}, {"c", "ground"}, {"d", "ground"}, {"e", "ground"}}));
+  s.enabled_pairs = {{"a", "nope"}};
+  expect_invalid([&] { build_contact_pairs(model, s); }, "nope");
+}
+
+TEST(ContactPairs, BadSettingsAreNamed) {
+  const Model model = chain(false);
+  auto fails = [&](ContactSettings s, const char* piece) {
+    StepOptions o;
+    o.contacts = s;
+    expect_invalid([&] { Simulator sim(model, 1, o); }, piece);
+  };
+  ContactSettings s;
+  s.capacity = 0;
+  fails(s, "capacity");
+  s = {};
+  s.shapes.assign(model.shapes.size(), ShapeContact{});
+  s.shapes[2].friction = -1;
+  fails(s, "shapes[2] (link c)");
+  s = {};
+  s.boxes.push_back(StaticBox{});
+  s.boxes[0].half_extents.x() = 0;
+  fails(s, "boxes[0]");
+  s = {};
+  s.ground_normal.setZero();
+  fails(s, "ground_normal");
+}
+
+TEST(ContactPairs, MeshesAreNotedAndModelsWithoutShapesRunNoCollisionCode) {
+  // solo12's collisions are meshes whose files are absent: dropped at import
+  // with a warning; finger_edu likewise. A scene without shapes skips the stage.
+  const Model model = load_shared_model("solo12", true);
+  StepOptions o;
+  o.contacts.ground = true;
+  Simulator sim(model, 1, o);
+  EXPECT_TRUE(sim.contact_pairs().pairs.empty());
+  EXPECT_FALSE(sim.plan()[static_cast<int>(Stage::Contacts)].runs);
+  EXPECT_NE(sim.describe_plan().find("contacts: skipped (no candidate shape pairs)"), std::string::npos);
+  EXPECT_EQ(sim.bytes_per_copy(), Simulator(model, 1).bytes_per_copy()) << "no contact arrays";
+  // a mesh shape that is present takes no part, and the pair list says so
+  ModelBuilder builder;
+  ArticulationSpec spec = free_shape_spec("thing", ShapeType::Sphere, Eigen::Vector3d(0.1, 0, 0), 1.0);
+  spec.links[0].shapes[0].type = ShapeType::Mesh;
+  spec.links[0].shapes[0].mesh_path = "thing.stl";
+  builder.add_articulation(spec);
+  const Model mesh_model = builder.finalize();
+  const ContactPairs pairs = build_contact_pairs(mesh_model, o.contacts);
+  EXPECT_TRUE(pairs.pairs.empty());
+  ASSERT_EQ(pairs.notes.size(), 1u);
+  EXPECT_NE(pairs.notes[0].find("thing.stl"), std::string::npos);
+}
+
+// A box lying on the ground has 4 contact points; with capacity 2 the other
+// two are dropped, counted per step and per copy, and the box still rests.
+TEST(ContactPairs, OverflowIsCountedPerCopy) {
+  const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0);
+  StepOptions o;
+  o.contacts.ground = true;
+  o.contacts.capacity = 2;
+  Simulator sim(model, 3, o);
+  for (int c = 0; c < 3; ++c) sim.set_state(c, free_pose(Eigen::Vector3d(0, 0, c == 1 ? 1.0 : 0.1)), Eigen::VectorXd::Zero(6));
+  sim.step(5);
+  EXPECT_EQ(sim.contact_overflow(0).dropped, 2);
+  EXPECT_EQ(sim.contact_overflow(0).overflow_steps, 5);
+  EXPECT_EQ(sim.contact_overflow(1).dropped, 0) << "copy 1 is in the air";
+  EXPECT_EQ(sim.contacts(0).size(), 2u);
+  sim.reset(0);
+  EXPECT_EQ(sim.contact_overflow(0).overflow_steps, 0);
+}
+
+// Contact forces per contact and per body: a 2 kg ball resting on the
+// ground presses with 2 g; the body wrench holds the same force.
+TEST(ContactPairs, ForcesPerContactAndPerBody) {
+  const Model model = single_body(ShapeType::Sphere, Eigen::Vector3d(0.1, 0, 0), 2.0);
+  StepOptions o;
+  o.precision = Precision::Double;
+  o.contacts.ground = true;
+  Simulator sim(model, 1, o);
+  sim.set_state(0, free_pose(Eigen::Vector3d(0.3, 0, 0.1)), Eigen::VectorXd::Zero(6));
+  sim.step(50);
+  const std::vector<Contact> contacts = sim.contacts(0);
+  ASSERT_EQ(contacts.size(), 1u);
+  EXPECT_EQ(contacts[0].shape_a, kGroundShape);
+  EXPECT_NEAR(contacts[0].force.z(), 2 * 9.81, 1e-9);
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> w = sim.body_contact_wrenches(0);
+  EXPECT_NEAR(w(2, 0), 2 * 9.81, 1e-9);
+  EXPECT_NEAR(w(4, 0), -0.3 * 2 * 9.81, 1e-9) << "torque about the world origin: x cross f";
+}
+
+// The per-copy ground: one copy's plane raised by 0.5 m holds its ball there.
+TEST(ContactPairs, GroundDiffersPerCopy) {
+  const Model model = single_body(ShapeType::Sphere, Eigen::Vector3d(0.1, 0, 0), 1.0);
+  StepOptions o;
+  o.contacts.ground = true;
+  Simulator sim(model, 2, o);
+  sim.set_state_all(free_pose(Eigen::Vector3d(0, 0, 0.7)), Eigen::VectorXd::Zero(6));
+  sim.set_ground(1, 0.5, Eigen::Vector3d::UnitZ(), 1.0);
+  sim.step(500);
+  EXPECT_NEAR(sim.q(0)[2], 0.1, 1e-3);
+  EXPECT_NEAR(sim.q(1)[2], 0.6, 1e-3);
+  Simulator no_ground(model, 1);
+  expect_invalid([&] { no_ground.set_ground(0, 0.0, Eigen::Vector3d::UnitZ(), 1.0); }, "no ground");
+}
+
+}  // namespace
+}  // namespace lockstep::test
