@@ -44,6 +44,7 @@ struct BenchConfig {
   long mujoco_steps = 20000;
   bool mujoco = true;
   bool json = false;
+  bool ground = false;  // a ground plane: the robot stands on it
 };
 
 // One timed configuration: `copies` environments advanced `steps` steps in
@@ -66,6 +67,8 @@ struct PrecisionResult {
   std::size_t bytes_per_copy = 0;
   int faults = 0;
   double max_pose_error = 0.0;
+  double mean_height = 0.0;    // of the floating root over all copies at the end
+  double mean_contacts = 0.0;  // contact points pushing, per copy, at the end
 };
 
 // The CPU's model name as Linux reports it, and its hardware threads.
@@ -113,7 +116,7 @@ std::vector<std::string> split(const std::string& list) {
 }
 
 BenchConfig parse_config(const std::vector<std::string>& args) {
-  const ParsedArgs parsed = parse_args(args, {"--no-mujoco", "--json"},
+  const ParsedArgs parsed = parse_args(args, {"--no-mujoco", "--json", "--ground"},
                                        {"--copies", "--threads", "--precision", "--steps", "--repeats", "--dt",
                                         "--mujoco-steps"});
   if (parsed.positional.size() > 1) throw UsageError("bench takes at most one MODEL.urdf");
@@ -142,6 +145,7 @@ BenchConfig parse_config(const std::vector<std::string>& args) {
   if (config.threads.empty() || config.precisions.empty())
     throw UsageError("--threads and --precision need at least one entry");
   config.mujoco = !parsed.has("--no-mujoco");
+  config.ground = parsed.has("--ground");
   config.json = parsed.has("--json");
   return config;
 }
@@ -170,6 +174,7 @@ PrecisionResult time_lockstep(const Model& model, const step_scene::Scene& scene
   StepOptions options;
   options.dt = config.dt;
   options.precision = precision;
+  options.contacts.ground = config.ground;
   Simulator sim = step_scene::make_simulator(model, scene, config.copies, options);
   if (plan.empty()) plan = sim.describe_plan();
   for (int threads : config.threads) {
@@ -184,7 +189,12 @@ PrecisionResult time_lockstep(const Model& model, const step_scene::Scene& scene
     }
     rows.push_back({"lockstep", precision_name(precision), threads, config.copies, config.steps, median(seconds)});
   }
-  return {precision, sim.bytes_per_copy(), sim.fault_count(), pose_error(model, sim, scene.q_target)};
+  PrecisionResult result{precision, sim.bytes_per_copy(), sim.fault_count(), pose_error(model, sim, scene.q_target)};
+  for (int c = 0; c < sim.copies(); ++c) {
+    result.mean_height += sim.q(c)[2] / sim.copies();
+    for (const Contact& contact : sim.contacts(c)) result.mean_contacts += contact.force.norm() > 0 ? 1.0 / sim.copies() : 0.0;
+  }
+  return result;
 }
 
 const Row* find_row(const std::vector<Row>& rows, const std::string& engine, const std::string& precision,
@@ -214,6 +224,7 @@ struct BenchReport {
   std::string mujoco_version;
   std::vector<std::string> mujoco_notes;
   double mujoco_pose_error = 0.0;
+  double mujoco_height = 0.0, mujoco_contacts = 0.0;
 };
 
 // Lockstep rows of `precision` against the engine's rows at the same thread
@@ -248,7 +259,7 @@ std::vector<Comparison> mujoco_ratios(const BenchReport& report) {
 void print_text(const BenchReport& r, std::ostream& out) {
   const BenchConfig& c = r.config;
   out << "lockstep bench: " << c.urdf << (r.floating_base ? " (floating base)" : " (fixed base)") << "\n"
-      << "scene: no contacts, gravity on, PD drives (kp " << step_scene::kDriveStiffness << " N m/rad, kd "
+      << "scene: " << (r.config.ground ? "standing on a ground plane (contacts on)" : "no contacts") << ", gravity on, PD drives (kp " << step_scene::kDriveStiffness << " N m/rad, kd "
       << step_scene::kDriveDamping << " N m s/rad) on " << r.driven_dofs << " of " << r.nv
       << " DOFs holding a standing pose, dt " << c.dt << " s\n"
       << "machine: " << r.machine << "\n"
@@ -294,6 +305,14 @@ void print_text(const BenchReport& r, std::ostream& out) {
     separator = ", ";
   }
   if (r.mujoco_status.empty()) out << ", MuJoCo " << r.mujoco_pose_error;
+  if (r.config.ground) {
+    out << "\nstanding (mean root height, mean pushing contacts per copy):";
+    for (const PrecisionResult& p : r.precisions)
+      out << " lockstep " << precision_name(p.precision) << " " << fixed(p.mean_height, 4) << " m, "
+          << fixed(p.mean_contacts, 2) << ";";
+    if (r.mujoco_status.empty())
+      out << " MuJoCo " << fixed(r.mujoco_height, 4) << " m, " << fixed(r.mujoco_contacts, 2);
+  }
   out << "\nfaulted copies:";
   for (const PrecisionResult& p : r.precisions) out << " " << precision_name(p.precision) << " " << p.faults;
   out << "\n\nstage plan:\n" << r.plan;
@@ -355,7 +374,7 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
   report.machine = machine_description();
   report.floating_base = loaded.floating_base;
   report.nv = model.nv;
-  const step_scene::Scene scene = step_scene::make_scene(model);
+  const step_scene::Scene scene = step_scene::make_scene(model, config.ground);
   report.driven_dofs = scene.driven_dofs;
 
   for (Precision precision : config.precisions)
@@ -371,7 +390,8 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
     peer.kp = step_scene::kDriveStiffness;
     peer.kd = step_scene::kDriveDamping;
     peer.targets = step_scene::standing_pose(model);
-    peer.base_height = step_scene::kBaseHeight;
+    peer.base_height = config.ground && loaded.floating_base ? scene.q0[2] : step_scene::kBaseHeight;
+    peer.ground = config.ground;
     try {
       const MujocoReport mujoco = run_mujoco_peer(peer, config.threads, config.mujoco_steps, config.repeats);
       for (const MujocoTiming& t : mujoco.timings)
@@ -379,6 +399,8 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
       report.mujoco_version = mujoco.version;
       report.mujoco_notes = mujoco.notes;
       report.mujoco_pose_error = mujoco.max_pose_error;
+      report.mujoco_height = mujoco.mean_base_height;
+      report.mujoco_contacts = mujoco.mean_contacts;
     } catch (const std::runtime_error& e) {
       // The peer is a comparison: a model MuJoCo cannot load leaves lockstep's numbers standing.
       report.mujoco_status = std::string("failed: ") + e.what();

@@ -35,7 +35,7 @@ constexpr const char* kUsage =
     "      mass matrix, bias and gravity forces, forward dynamics, energies and\n"
     "      link poses for one state, as JSON\n"
     "  bench [MODEL.urdf] [--copies N] [--threads 1,2] [--precision float,double]\n"
-    "        [--steps S] [--repeats R] [--dt DT] [--mujoco-steps M] [--no-mujoco] [--json]\n"
+    "        [--steps S] [--repeats R] [--dt DT] [--mujoco-steps M] [--no-mujoco] [--ground] [--json]\n"
     "      env-steps per second of the simulation step on a floating-base model\n"
     "      holding a standing pose (default: anymal_b), MuJoCo beside it if built in\n"
     "  demo\n"

@@ -1,5 +1,6 @@
 // MuJoCo as the peer of `lockstep bench`: the same URDF, the same dt, the
-// same PD holding the same pose, contacts off, timed in the same run.
+// same PD holding the same pose, timed in the same run; contacts off, or,
+// with `ground`, the robot standing on a plane with contacts on.
 // Compiled only when the MuJoCo headers and library are found (the build
 // then defines LOCKSTEP_HAVE_MUJOCO); docs/cli.md describes the output.
 #pragma once
@@ -19,6 +20,12 @@ struct MujocoScene {
   // Drive targets by URDF joint name (rad or m); joints not named hold 0.
   std::vector<std::pair<std::string, double>> targets;
   double base_height = 0.0;  // initial z of the floating root
+  // Contacts: off unless `ground`, which keeps the URDF's primitive
+  // collision shapes (spheres, boxes, cylinders; mesh collisions are still
+  // removed), adds a plane at z = 0 with normal +z and turns contacts on.
+  bool ground = false;
+  double friction = 1.0;        // sliding friction of the ground and of every robot geom
+  bool self_collision = false;  // robot geoms also collide with each other (MuJoCo still skips parent-child pairs)
 };
 
 // One thread count: each thread steps its own mjData `steps` times per
@@ -35,10 +42,16 @@ struct MujocoReport {
   std::vector<std::string> notes;  // what was done to the URDF and the model, in order
   std::vector<MujocoTiming> timings;
   double max_pose_error = 0.0;  // max |q - q_target| over the driven joints after the last repeat (rad or m)
+  // Over every timed step of the last repeat of the first thread's mjData
+  // (last thread count): the mean z of the floating root (0 without one)
+  // and the mean number of contacts d->ncon (0 with contacts off).
+  double mean_base_height = 0.0;
+  double mean_contacts = 0.0;
 };
 
 // Loads `scene.urdf_path` into MuJoCo (meshes stripped, a floating root
-// added when asked) and times it for each thread count. Throws
+// added when asked; with `ground`, saved as MJCF, given the plane and the
+// contact settings, and loaded again) and times it for each thread count. Throws
 // std::runtime_error with MuJoCo's message when the model does not load.
 MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& threads, long steps, int repeats);
 

@@ -5,7 +5,10 @@
 // a library of their own.
 #pragma once
 
+#include "batch/copy_dynamics.hpp"
 #include "batch/simulator.hpp"
+
+#include <algorithm>
 
 #include <string>
 #include <utility>
@@ -51,7 +54,25 @@ struct Scene {
   int driven_dofs = 0;
 };
 
-inline Scene make_scene(const Model& model) {
+// The root height at which the pose q's lowest sphere (a foot) touches the
+// plane z = 0; kBaseHeight when the model has no sphere.
+inline double touching_height(const Model& model, Eigen::VectorXd q) {
+  const CopyDynamics dynamics(model);
+  double lowest = 0;
+  bool found = false;
+  for (int b = 0; b < model.nbody; ++b)
+    if (model.body_joint[b] == JointType::Free) q[model.body_q_offset[b] + 2] = 0;
+  const std::vector<Eigen::Isometry3d> bodies = dynamics.body_poses(q);
+  for (const Shape& s : model.shapes)
+    if (s.type == ShapeType::Sphere && s.body >= 0) {
+      lowest = std::min(lowest, (bodies[s.body] * s.pose).translation().z() - s.size.x());
+      found = true;
+    }
+  return found ? -lowest : kBaseHeight;
+}
+
+// ground: the floating root starts where the feet touch the plane z = 0.
+inline Scene make_scene(const Model& model, bool ground = false) {
   Scene scene;
   scene.dofs = default_dof_settings(model);
   for (int d = 0; d < model.nv; ++d) {
@@ -63,8 +84,9 @@ inline Scene make_scene(const Model& model) {
   scene.q_target = model.neutral_configuration();
   for (const auto& [joint, target] : standing_pose(model))
     scene.q_target[model.body_q_offset[model.joint_index(joint)]] = target;
+  const double base_height = ground ? touching_height(model, scene.q_target) : kBaseHeight;
   for (int b = 0; b < model.nbody; ++b)
-    if (model.body_joint[b] == JointType::Free) scene.q_target[model.body_q_offset[b] + 2] = kBaseHeight;
+    if (model.body_joint[b] == JointType::Free) scene.q_target[model.body_q_offset[b] + 2] = base_height;
   scene.q0 = scene.q_target;
   scene.v0 = Eigen::VectorXd::Zero(model.nv);
   return scene;
