@@ -126,10 +126,8 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows) {
       const L radius = rows.mu[r] * rows.lambda[rows.bound_row[r]];
       const L length = lane::sqrt(a * a + b * b);
       const L scale = lane::select(length > radius, radius / lane::max(length, L(std::numeric_limits<T>::min())), L(T(1)));
-      // no normal impulse, no friction (whatever the unclamped step was)
-      const auto pushed = radius > L(T(0));
-      rows.lambda[r] = lane::select(pushed, a * scale, L(T(0)));
-      rows.lambda[r + 1] = lane::select(pushed, b * scale, L(T(0)));
+      rows.lambda[r] = a * scale;
+      rows.lambda[r + 1] = b * scale;
       ++r;
       continue;
     }
