@@ -104,7 +104,7 @@ struct Side {
 // are the same, adjacent, or joined only through bodies without shapes.
 class ArticulationFilter {
  public:
-  ArticulationFilter(const Model& model) : model_(model), body_has_shape_(model.nbody, false) {
+  explicit ArticulationFilter(const Model& model) : model_(model), body_has_shape_(model.nbody, false) {
     for (const Shape& s : model.shapes)
       if (s.body >= 0 && s.type != ShapeType::Mesh) body_has_shape_[s.body] = true;
     for (const Shape& s : model.shapes)
@@ -151,7 +151,6 @@ class ArticulationFilter {
 
 ContactPairs build_contact_pairs(const Model& model, const ContactSettings& settings) {
   ContactPairs out;
-  if (!settings.enabled) return out;
   std::vector<Side> sides;
   for (int i = 0; i < static_cast<int>(model.shapes.size()); ++i) {
     const Shape& s = model.shapes[i];

@@ -2,7 +2,8 @@
 // boxes, the model's shapes and the filters between them) and how contacts
 // behave (friction, restitution, compliance). Part of StepOptions; the
 // defaults make a rigid, inelastic, frictional contact with friction 1 and
-// no ground. docs/contacts.md has the model and the numbers.
+// no ground. Stage::Contacts forced Off turns contacts off entirely.
+// docs/contacts.md has the model and the numbers.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -35,7 +36,6 @@ struct StaticBox {
 };
 
 struct ContactSettings {
-  bool enabled = true;  // false: no collision code runs at all
   // An infinite plane through (0, 0, ground_height) with unit normal
   // ground_normal; height, normal and friction may differ per copy
   // (Simulator::set_ground).

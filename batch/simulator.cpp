@@ -217,8 +217,14 @@ std::string Simulator::describe_plan() const {
   out << "  kinematics and ABA with gravity: always\n";
   for (const StageDecision& d : plan_)
     out << "  " << stage_name(d.stage) << ": " << (d.runs ? "runs" : "skipped") << " (" << d.reason << ")\n";
-  out << "  solver: " << (row_count() > 0 ? "runs on " + std::to_string(row_count()) + " rows per copy" : "skipped (no rows)")
-      << "\n";
+  const bool contacts = plan_[static_cast<int>(Stage::Contacts)].runs && !pairs_.pairs.empty();
+  const int per_contact = options_.contacts.torsional_friction > 0 ? 4 : 3;
+  out << "  solver: ";
+  if (row_count() == 0 && !contacts) out << "skipped (no rows)";
+  else out << "runs on " << row_count() << " joint rows per copy";
+  if (contacts)
+    out << " and " << per_contact << " rows per contact point, up to " << options_.contacts.capacity << " points";
+  out << "\n";
   out << "  fault check: always\n";
   return out.str();
 }

@@ -102,11 +102,6 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
 // contact arrays; returns the most narrowphase points of one pair.
 template <class L>
 int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs) {
-  auto put_pose = [](const Eigen::Isometry3d& pose, T* out) {
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) out[3 * r + c] = static_cast<T>(pose.linear()(r, c));
-    for (int i = 0; i < 3; ++i) out[9 + i] = static_cast<T>(pose.translation()[i]);
-  };
   int most = 0;
   for (const ContactPair& pair : pairs.pairs) {
     ContactPairSpec<T> spec;
@@ -114,8 +109,8 @@ int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, 
     spec.ground = pair.a.shape == kGroundShape;
     spec.body_a = pair.a.body;
     spec.body_b = pair.b.body;
-    put_pose(pair.a.pose, spec.pose_a);
-    put_pose(pair.b.pose, spec.pose_b);
+    flatten_transform(pair.a.pose, spec.pose_a);
+    flatten_transform(pair.b.pose, spec.pose_b);
     for (int i = 0; i < 3; ++i) {
       spec.size_a[i] = static_cast<T>(pair.a.size[i]);
       spec.size_b[i] = static_cast<T>(pair.b.size[i]);

@@ -47,7 +47,6 @@ class StepEngine final : public Simulator::Engine {
   void set_plan(const StepPlan& plan) override;
   int copies() const override { return batch_.copies(); }
   int rows() const override { return static_cast<int>(row_specs_.size()); }
-  int contact_rows_per_point() const { return contact_params_.rows_per_contact; }
   std::size_t bytes_per_copy() const override { return batch_.bytes_per_copy(); }
 
   StepBatch<T>& batch() { return batch_; }

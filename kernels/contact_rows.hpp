@@ -19,7 +19,6 @@
 #include "kernels/joint_rows.hpp"
 #include "kernels/pair_kind.hpp"
 
-#include <algorithm>
 #include <limits>
 #include <vector>
 
@@ -31,7 +30,7 @@ struct ContactPairSpec {
   PairKind kind;
   bool ground = false;     // A is the copy's ground plane
   int body_a = -1, body_b = -1;  // -1: fixed in the world
-  T pose_a[12], pose_b[12];  // shape frame in the body frame (world if fixed): R row-major, then p
+  T pose_a[12], pose_b[12];  // shape frame in the body frame (world if fixed), flatten_transform's layout
   T size_a[3], size_b[3];    // Shape::size convention
   T radius_a = 0, radius_b = 0;  // bounding spheres about the shape origins
   T reach_a = 0, reach_b = 0;    // |shape origin| + radius, on the body: a point's distance from the body origin
@@ -108,18 +107,10 @@ inline void tangent_frame(const Vec3<L>& n, Vec3<L>& t1, Vec3<L>& t2) {
 
 namespace contact_detail {
 
-template <class L>
-Transform<L> broadcast_pose(const lane::scalar_t<L>* pose) {
-  Transform<L> X;
-  for (int i = 0; i < 9; ++i) X.R.m[i] = L(pose[i]);
-  X.p = {L(pose[9]), L(pose[10]), L(pose[11])};
-  return X;
-}
-
 // A shape's world pose: its body's world transform times its pose on the body.
 template <class L>
 Transform<L> shape_pose(const Workspace<L>& ws, int body, const lane::scalar_t<L>* pose) {
-  const Transform<L> local = broadcast_pose<L>(pose);
+  const Transform<L> local = broadcast_transform<L>(pose);
   return body < 0 ? local : spatial::compose(ws.world[body], local);
 }
 

@@ -5,9 +5,8 @@ namespace lockstep {
 namespace {
 template <class T>
 void append_placement(std::vector<T>& out, const Eigen::Isometry3d& X) {
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) out.push_back(static_cast<T>(X.linear()(r, c)));
-  for (int k = 0; k < 3; ++k) out.push_back(static_cast<T>(X.translation()[k]));
+  out.resize(out.size() + 12);
+  flatten_transform(X, out.data() + out.size() - 12);
 }
 }  // namespace
 

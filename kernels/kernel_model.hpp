@@ -17,6 +17,15 @@ inline constexpr int kInertiaMass = 0;
 inline constexpr int kInertiaCom = 1;
 inline constexpr int kInertiaRot = 4;
 
+// A rigid transform as the kernels store it (broadcast_transform reads it):
+// R row-major, then p; 12 values from out.
+template <class T>
+void flatten_transform(const Eigen::Isometry3d& X, T* out) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out[3 * r + c] = static_cast<T>(X.linear()(r, c));
+  for (int k = 0; k < 3; ++k) out[9 + k] = static_cast<T>(X.translation()[k]);
+}
+
 template <class T>
 struct KernelModel {
   int nbody = 0, nq = 0, nv = 0, nframe = 0;

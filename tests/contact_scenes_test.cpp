@@ -148,16 +148,11 @@ Standing stand(const std::string& name, double tilt, Precision precision, Solver
   std::vector<DofSettings> dofs = default_dof_settings(model);
   for (int k = 6; k < model.nv; ++k) dofs[k].drive_stiffness = 300, dofs[k].drive_damping = 8;
   Simulator sim(model, 1, o, dofs);
-  Eigen::VectorXd q = stance(model);
-  // the feet's lowest point with the base at the origin
-  const CopyDynamics dynamics(model);
-  const std::vector<Eigen::Isometry3d> frames = dynamics.frame_poses(q);
-  double lowest = 0;
-  for (const Shape& s : model.shapes)
-    if (s.type == ShapeType::Sphere) lowest = std::min(lowest, (frames[s.frame] * s.pose).translation().z() - s.size.x());
-  q[2] = -lowest + 0.05 + 0.35 * std::tan(tilt);  // clear of the slope under the farthest foot
+  const Eigen::VectorXd target = stance(model);
+  Eigen::VectorXd q = target;
+  q[2] += 0.05 + 0.35 * std::tan(tilt);  // 5 cm, and clear of the slope under the farthest foot
   sim.set_state(0, q, Eigen::VectorXd::Zero(model.nv));
-  sim.set_drive_target(0, stance(model), Eigen::VectorXd::Zero(model.nv));
+  sim.set_drive_target(0, target, Eigen::VectorXd::Zero(model.nv));
   const Eigen::Vector3d n = o.contacts.ground_normal;
   Standing r;
   for (int i = 0; i < 6000; ++i) {

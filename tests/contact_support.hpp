@@ -4,6 +4,7 @@
 
 #include "batch/copy_dynamics.hpp"
 #include "io/urdf_import.hpp"
+#include "tools/step_scene.hpp"
 #include "tests/sim_support.hpp"
 
 namespace lockstep::test {
@@ -57,22 +58,8 @@ inline Eigen::VectorXd free_pose(const Eigen::Vector3d& p, const Eigen::Quaterni
   return q;
 }
 
-// The stance both quadrupeds are held in: hips 0, thighs and knees bent so
-// that the feet are under the hips.
-inline Eigen::VectorXd stance(const Model& model) {
-  Eigen::VectorXd q = model.neutral_configuration();
-  for (int k = 0; k < model.nv; ++k) {
-    const std::string& name = model.dof_name[k];
-    const int body = model.dof_body[k];
-    if (model.body_joint[body] == JointType::Free) continue;
-    const int i = model.body_q_offset[body];
-    const bool front = name.find("F_") != std::string::npos || name.find("F") == 1;
-    if (name.find("HFE") != std::string::npos) q[i] = front ? 0.4 : -0.4;        // anymal_b
-    if (name.find("KFE") != std::string::npos) q[i] = front ? -0.8 : 0.8;
-    if (name.find("thigh_joint") != std::string::npos) q[i] = 0.8;               // a1
-    if (name.find("calf_joint") != std::string::npos) q[i] = -1.6;
-  }
-  return q;
-}
+// A quadruped's standing pose (the benchmark's, tools/step_scene.hpp) with
+// its floating root at the height where its feet touch the plane z = 0.
+inline Eigen::VectorXd stance(const Model& model) { return step_scene::make_scene(model, true).q_target; }
 
 }  // namespace lockstep::test
