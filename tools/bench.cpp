@@ -4,7 +4,7 @@
 // (docs/cli.md, docs/performance.md).
 #include "io/urdf_import.hpp"
 #include "tools/cli.hpp"
-#include "tools/json.hpp"
+#include "io/json.hpp"
 #include "tools/step_scene.hpp"
 #ifdef LOCKSTEP_HAVE_MUJOCO
 #include "tools/mujoco_peer.hpp"

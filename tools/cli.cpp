@@ -1,8 +1,8 @@
 #include "tools/cli.hpp"
 
 #include "io/urdf_import.hpp"
-#include "tools/json.hpp"
-#include "tools/state.hpp"
+#include "io/json.hpp"
+#include "io/joint_state.hpp"
 
 #include <algorithm>
 #include <exception>

@@ -2,8 +2,8 @@
 // (docs/cli.md).
 #include "batch/copy_dynamics.hpp"
 #include "tools/cli.hpp"
-#include "tools/json.hpp"
-#include "tools/state.hpp"
+#include "io/json.hpp"
+#include "io/joint_state.hpp"
 
 #include <ostream>
 

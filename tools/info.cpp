@@ -1,6 +1,6 @@
 // `lockstep info`: the tree of a model, as a table or as JSON (docs/cli.md).
 #include "tools/cli.hpp"
-#include "tools/json.hpp"
+#include "io/json.hpp"
 
 #include <algorithm>
 #include <cmath>

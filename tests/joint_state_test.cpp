@@ -1,5 +1,5 @@
 #include "layout/model_builder.hpp"
-#include "tools/state.hpp"
+#include "io/joint_state.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "tools/json.hpp"
+#include "io/json.hpp"
 
 #include <gtest/gtest.h>
 

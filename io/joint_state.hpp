@@ -1,9 +1,9 @@
-// Reading a single state (q, qd, tau) keyed by URDF joint name, the input of
-// `lockstep dynamics` (format: docs/cli.md).
+// Reading a single state (q, qd, tau) keyed by URDF joint name: the input of
+// `lockstep dynamics` and the initial state of a scene file (docs/cli.md).
 #pragma once
 
 #include "layout/model.hpp"
-#include "tools/json.hpp"
+#include "io/json.hpp"
 
 #include <stdexcept>
 #include <string>

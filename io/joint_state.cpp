@@ -1,4 +1,4 @@
-#include "tools/state.hpp"
+#include "io/joint_state.hpp"
 
 #include <cmath>
 
