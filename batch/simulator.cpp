@@ -3,6 +3,9 @@
 #include "batch/batch_dynamics.hpp"
 #include "batch/step_engine.hpp"
 
+#include <Eigen/Eigenvalues>
+
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -12,17 +15,19 @@ namespace lockstep {
 template <class T>
 StepBatch<T>::StepBatch(const Model& model, int copies, int width, int rows)
     : state(model, copies, width), target_q(copies, model.nq, width), target_v(copies, model.nv, width),
-      drive_stiffness(copies, model.nv, width), drive_damping(copies, model.nv, width), impulse(copies, rows, width),
+      drive_stiffness(copies, model.nv, width), drive_damping(copies, model.nv, width), joint_damping(copies, model.nv, width),
+      armature(copies, model.nv, width), impulse(copies, rows, width),
       initial_q(copies, model.nq, width), initial_v(copies, model.nv, width), fault(copies, 1, width) {
   target_q.set_all(model.neutral_configuration());
   initial_q.set_all(model.neutral_configuration());
+  armature.set_all(Eigen::Map<const Eigen::VectorXd>(model.dof_armature.data(), model.nv));
 }
 
 template <class T>
 std::size_t StepBatch<T>::bytes_per_copy() const {
   std::size_t values = 0;
   for (const BatchArray<T>* a : {&state.q, &state.v, &state.tau, &state.qacc, &state.wrench, &state.inertia,
-                                 &state.gravity, &target_q, &target_v, &drive_stiffness, &drive_damping, &impulse,
+                                 &state.gravity, &target_q, &target_v, &drive_stiffness, &drive_damping, &joint_damping, &armature, &impulse,
                                  &initial_q, &initial_v, &fault, &applied_drive, &applied_passive, &applied_friction,
                                  &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
@@ -158,7 +163,7 @@ void Simulator::make_plan() {
     const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
     const bool limited = one_dof && (std::isfinite(d.lower) || std::isfinite(d.upper));
     drives += d.drive_stiffness > 0 || d.drive_damping > 0 || (per_copy_gains_ && type != JointType::Free);
-    damping += d.damping > 0;
+    damping += d.damping > 0 || per_copy_damping_;
     springs += d.spring_stiffness > 0;
     soft += limited && d.limit_stiffness > 0;
     hard += limited && d.limit_stiffness == 0;
@@ -319,11 +324,31 @@ void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::Vecto
   });
 }
 
+namespace {
+
+// The per-copy inputs and parameters a snapshot carries, in its order.
+template <class Batch>
+auto copy_parameters(Batch& b) {
+  return std::array{&b.state.tau, &b.state.wrench, &b.state.inertia, &b.state.gravity, &b.target_q, &b.target_v,
+                    &b.drive_stiffness, &b.drive_damping, &b.joint_damping, &b.armature, &b.ground,
+                    &b.ground_friction, &b.initial_q, &b.initial_v, &b.fault};
+}
+
+}  // namespace
+
 CopySnapshot Simulator::snapshot(int copy) const {
   check_copy(copy);
   return visit([&](auto& b) {
+    int size = 0;
+    for (const auto* a : copy_parameters(b)) size += a->size();
+    Eigen::VectorXd parameters(size);
+    int at = 0;
+    for (const auto* a : copy_parameters(b)) {
+      parameters.segment(at, a->size()) = a->get(copy);
+      at += a->size();
+    }
     return CopySnapshot{b.state.q.get(copy), b.state.v.get(copy), b.impulse.get(copy), b.contact_id.get(copy),
-                        b.contact_impulse.get(copy)};
+                        b.contact_impulse.get(copy), parameters};
   });
 }
 
@@ -333,12 +358,32 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     require(s.q.size() == model_->nq && s.v.size() == model_->nv && s.joint_impulse.size() == b.impulse.size() &&
                 s.contact_id.size() == b.contact_id.size() && s.contact_impulse.size() == b.contact_impulse.size(),
             "restore: the snapshot's sizes do not match this simulator's scene");
+    int size = 0;
+    for (const auto* a : copy_parameters(b)) size += a->size();
+    require(s.parameters.size() == size, "restore: the snapshot's parameters do not match this simulator's scene");
+    int at = 0;
+    for (auto* a : copy_parameters(b)) {
+      a->set(copy, s.parameters.segment(at, a->size()));
+      at += a->size();
+    }
     b.state.q.set(copy, s.q);
     b.state.v.set(copy, s.v);
     b.impulse.set(copy, s.joint_impulse);
     b.contact_id.set(copy, s.contact_id);
     b.contact_impulse.set(copy, s.contact_impulse);
   });
+  note_copy_inputs(copy);
+}
+
+void Simulator::note_copy_inputs(int copy) {
+  bool changed = false;
+  visit([&](auto& b) {
+    auto nonzero = [&](const auto& a) { return a.get(copy).any(); };
+    if (!per_copy_gains_ && (nonzero(b.drive_stiffness) || nonzero(b.drive_damping))) per_copy_gains_ = changed = true;
+    if (!per_copy_damping_ && nonzero(b.joint_damping)) per_copy_damping_ = changed = true;
+    if (!wrenches_used_ && nonzero(b.state.wrench)) wrenches_used_ = changed = true;
+  });
+  if (changed) replan();
 }
 
 void Simulator::set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
@@ -377,10 +422,45 @@ void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen
     b.drive_stiffness.set(copy, kp);
     b.drive_damping.set(copy, kd);
   });
-  if (!per_copy_gains_ && (kp.any() || kd.any())) {
-    per_copy_gains_ = true;
-    replan();
-  }
+  note_copy_inputs(copy);
+}
+
+void Simulator::check_per_dof(const Eigen::VectorXd& values, const char* what) const {
+  check_velocity(values, what);
+  for (int k = 0; k < model_->nv; ++k)
+    require(std::isfinite(values[k]) && values[k] >= 0, std::string(what) + ": DOF " + std::to_string(k) + " (" +
+                                                            model_->dof_name[k] + ") needs a finite value >= 0");
+}
+
+void Simulator::set_joint_damping(int copy, const Eigen::VectorXd& damping) {
+  check_copy(copy);
+  check_per_dof(damping, "set_joint_damping");
+  visit([&](auto& b) { b.joint_damping.set(copy, damping); });
+  note_copy_inputs(copy);
+}
+
+void Simulator::set_armature(int copy, const Eigen::VectorXd& armature) {
+  check_copy(copy);
+  check_per_dof(armature, "set_armature");
+  visit([&](auto& b) { b.armature.set(copy, armature); });
+}
+
+void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com,
+                                 const Eigen::Matrix3d& inertia) {
+  check_copy(copy);
+  if (body < 0 || body >= model_->nbody)
+    throw std::out_of_range("set_body_inertia: body index " + std::to_string(body) + " outside [0, " +
+                            std::to_string(model_->nbody) + ")");
+  const std::string where =
+      "set_body_inertia: body " + std::to_string(body) + " (" + model_->frame_name[model_->body_frame[body]] + "): ";
+  require(std::isfinite(mass) && mass >= 0, where + "mass must be finite and >= 0");
+  require(com.allFinite() && inertia.allFinite(), where + "COM and inertia must be finite");
+  // symmetric positive semidefinite, round-off aside (as the URDF importer accepts)
+  const double scale = std::max(1.0, inertia.diagonal().cwiseAbs().maxCoeff());
+  require((inertia - inertia.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * scale &&
+              Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(inertia).eigenvalues().minCoeff() >= -1e-12 * scale,
+          where + "the rotational inertia must be symmetric positive semidefinite");
+  visit([&](auto& b) { b.state.set_body_inertia(copy, body, mass, com, inertia); });
 }
 
 void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench) {

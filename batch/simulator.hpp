@@ -44,6 +44,11 @@ struct StepBatch {
   // stage on: use Simulator::set_drive_gains, or force Stage::Drives On.
   BatchArray<T> drive_stiffness;
   BatchArray<T> drive_damping;
+  // (nv) per-copy joint damping and armature, from DofSettings::damping and
+  // the model's armature. Damping acts only with Stage::Damping on (a DOF
+  // with damping, Simulator::set_joint_damping, or forced On).
+  BatchArray<T> joint_damping;
+  BatchArray<T> armature;
   BatchArray<T> impulse;   // (rows) the solver's impulses of the last step: its warm start
   BatchArray<T> initial_q; // (nq) what a reset restores
   BatchArray<T> initial_v; // (nv)
@@ -86,11 +91,15 @@ struct Contact {
   double torsion = 0;               // on B about the normal [N m] (torsional friction)
 };
 
-// Everything a copy's next steps depend on besides its inputs: the state
-// and the solver's warm start (joint-row impulses, contact points and their
-// impulses). Restoring a snapshot replays the copy bit for bit.
+// Everything a copy's next steps depend on: the state, the solver's warm
+// start (joint-row impulses, contact points and their impulses), and the
+// copy's inputs and per-copy parameters (torques, wrenches, inertial
+// parameters, gravity, drive targets and gains, joint damping, armature,
+// ground, initial state, fault), in that order in `parameters`. Restoring
+// a snapshot, into this simulator or one built alike, replays the copy bit
+// for bit.
 struct CopySnapshot {
-  Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse;
+  Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, parameters;
 };
 
 // Contacts dropped for want of capacity.
@@ -138,6 +147,15 @@ class Simulator {
   // (nv) per-copy gains, overriding DofSettings; a copy given gains turns
   // the drive stage on for the scene.
   void set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen::VectorXd& kd);
+  // (nv) per-copy joint damping [N m s/rad or N s/m], overriding
+  // DofSettings::damping; a copy given some turns the damping stage on.
+  void set_joint_damping(int copy, const Eigen::VectorXd& damping);
+  // (nv) per-copy armature (rotor inertia) [kg m^2 or kg], overriding the model's.
+  void set_armature(int copy, const Eigen::VectorXd& armature);
+  // One body's inertial parameters in one copy: mass [kg], COM in the body
+  // frame, rotational inertia about the COM in body axes (symmetric positive
+  // semidefinite).
+  void set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com, const Eigen::Matrix3d& inertia);
   // World [force; torque about the body's COM]; the first call turns the
   // wrench stage on (bulk writers through batch<T>() force it On instead).
   void set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench);
@@ -182,6 +200,10 @@ class Simulator {
   std::string rows_summary() const;
   void check_copy(int copy) const;
   void check_velocity(const Eigen::VectorXd& v, const char* what) const;
+  void check_per_dof(const Eigen::VectorXd& values, const char* what) const;  // nv finite values >= 0
+  // Replans when a copy's drive gains, damping or wrenches need a stage the
+  // plan skips.
+  void note_copy_inputs(int copy);
   Eigen::VectorXd checked_configuration(const Eigen::VectorXd& q, const char* what) const;
   template <class F>
   decltype(auto) visit(F&& f) const;
@@ -193,6 +215,7 @@ class Simulator {
   ContactPairs pairs_;
   double time_ = 0.0;
   bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive
+  bool per_copy_damping_ = false;  // set_joint_damping gave some copy damping
   bool wrenches_used_ = false;   // set_link_wrench was called
   std::unique_ptr<Engine> engine_;
 };

@@ -41,7 +41,6 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     const DofSettings& d = dofs[k];
     jm_.acceleration_drive[k] = d.drive_type == DriveType::Acceleration;
     jm_.max_force.push_back(static_cast<T>(d.max_force));
-    jm_.damping_coefficient.push_back(static_cast<T>(d.damping));
     jm_.spring_stiffness.push_back(static_cast<T>(d.spring_stiffness));
     jm_.spring_rest.push_back(static_cast<T>(d.spring_rest));
     jm_.lower.push_back(static_cast<T>(d.lower));
@@ -88,10 +87,14 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   if (options.record_applied_torque)
     for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
       *a = BatchArray<T>(copies, nv, kWidth);
-  Eigen::VectorXd kp(nv), kd(nv);
-  for (int k = 0; k < nv; ++k) kp[k] = dofs[k].drive_stiffness, kd[k] = dofs[k].drive_damping;
+  Eigen::VectorXd kp(nv), kd(nv), damping(nv);
+  for (int k = 0; k < nv; ++k) kp[k] = dofs[k].drive_stiffness, kd[k] = dofs[k].drive_damping, damping[k] = dofs[k].damping;
   batch_.drive_stiffness.set_all(kp);
   batch_.drive_damping.set_all(kd);
+  batch_.joint_damping.set_all(damping);
+  // The armature is per copy (StepBatch::armature): the step's ABA and CRBA
+  // take it with the implicit diagonal (StepJointTerms), not from km_.
+  std::fill(km_.dof_armature.begin(), km_.dof_armature.end(), T(0));
   const int candidates = plan.contacts ? set_up_contacts(copies, options.contacts, pairs) : 0;
   const int rows = static_cast<int>(row_specs_.size()), columns = static_cast<int>(column_dof_.size());
   scratch_ = std::make_unique<tbb::enumerable_thread_specific<Scratch>>(
@@ -195,7 +198,7 @@ void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockIn
   // Jacobian weight h/2). RK4 evaluates the plain equations of motion at
   // its stages: explicit.
   const T gyroscopic = options_.implicit_gyroscopic && options_.integrator != Integrator::RK4 ? T(0.5) * h : T(0);
-  StepJointTerms<L> terms{jm_, s.terms, tau_ff, gyroscopic};
+  StepJointTerms<L> terms{jm_, s.terms, tau_ff, terms_in.armature, gyroscopic};
   aba_with<L>(km_, at, terms, s.ws, fields(s.qacc));
 }
 
@@ -225,7 +228,8 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   in.gravity = B.state.gravity.block(block);
   in.wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
   const JointTermInputs<T> terms_in{q, v, B.target_q.block(block), B.target_v.block(block),
-                                    B.drive_stiffness.block(block), B.drive_damping.block(block)};
+                                    B.drive_stiffness.block(block), B.drive_damping.block(block),
+                                    B.joint_damping.block(block), B.armature.block(block)};
   for (int k = 0; k < nv; ++k) s.u0[k] = lane::load<L>(v + k * W);
 
   T* q_next = fields(s.q_next);

@@ -114,7 +114,7 @@ void build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
 }
 
 // The joint rows' block of the Delassus matrix (rows [0, specs.size()) of
-// an m x m D): Mt = CRBA + armature + w factored as L^T D L, left in
+// an m x m D): Mt = CRBA + the implicit diagonal (armature and w) factored as L^T D L, left in
 // ws.matrix for further rows, one solve per distinct row DOF. Needs
 // ws.local; overwrites ws.inertia and ws.matrix.
 template <class L>

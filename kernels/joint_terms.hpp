@@ -26,7 +26,6 @@ struct JointTermModel {
   bool drives = false, damping = false, springs = false, soft_limits = false, stribeck = false;
   std::vector<unsigned char> acceleration_drive;  // (nv) 1: gains in 1/s^2, 1/s
   std::vector<T> max_force;                       // (nv) effort limit, +inf when none
-  std::vector<T> damping_coefficient;             // (nv)
   std::vector<T> spring_stiffness, spring_rest;   // (nv)
   std::vector<T> lower, upper;                    // (nv) limits, used by soft limits
   std::vector<T> limit_stiffness, limit_damping;  // (nv) 0 on hard-limited DOFs
@@ -40,7 +39,7 @@ struct JointTermScratch {
   std::vector<L> passive, passive_implicit;  // (nv) explicit passive force and its w
   std::vector<L> command;                    // (nv) clamped feedforward + PD of the step
   std::vector<L> drive_implicit;             // (nv) w of the drive, after scaling
-  std::vector<L> implicit_diagonal;          // (nv) the whole w added to D
+  std::vector<L> implicit_diagonal;          // (nv) everything added to S^T IA S: the armature and the whole w
   explicit JointTermScratch(int nv)
       : pd(nv), pd_implicit(nv), passive(nv), passive_implicit(nv), command(nv), drive_implicit(nv),
         implicit_diagonal(nv) {}
@@ -55,6 +54,8 @@ struct JointTermInputs {
   const T* target_v = nullptr;  // (nv)
   const T* stiffness = nullptr; // (nv) kp
   const T* damping = nullptr;   // (nv) kd
+  const T* joint_damping = nullptr;  // (nv) viscous damping coefficient
+  const T* armature = nullptr;  // (nv) rotor inertia, joins D with w
 };
 
 // The smooth dry friction of the articulated-actors reference, opposing v:
@@ -115,7 +116,7 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
         s.pd_implicit[k] = lane::fmadd(h2, kp, h * kd);
       }
       if (jm.damping) {
-        const L c(jm.damping_coefficient[k]);
+        const L c = lane::load<L>(in.joint_damping + k * W);
         s.passive[k] = lane::fnmadd(c, v, s.passive[k]);
         s.passive_implicit[k] = lane::fmadd(h, c, s.passive_implicit[k]);
       }
@@ -153,13 +154,16 @@ struct StepJointTerms {
   using T = lane::scalar_t<L>;
   const JointTermModel<T>& jm;
   JointTermScratch<L>& s;
-  const T* tau_ff;  // (nv) per lane
+  const T* tau_ff;    // (nv) per lane
+  const T* armature;  // (nv) per lane: joins D here, since the step's km carries none
   T gyroscopic_step;  // weight of the implicit gyroscopic Jacobian on Free bodies (h/2), 0 for explicit
 
   T implicit_gyroscopic_step() const { return gyroscopic_step; }
 
-  L apply(int dof, const L& D, L& tau) const {
+  L apply(int dof, const L& D_without_armature, L& tau) const {
     constexpr std::size_t W = lane::width_v<L>;
+    const L armature_k = lane::load<L>(armature + dof * W);
+    const L D = D_without_armature + armature_k;
     L pd = s.pd[dof], w_drive = s.pd_implicit[dof];
     if (jm.acceleration_drive[dof]) {
       pd = pd * D;
@@ -170,7 +174,7 @@ struct StepJointTerms {
     s.command[dof] = command;
     s.drive_implicit[dof] = w_drive;
     tau = command + s.passive[dof];
-    const L w = w_drive + s.passive_implicit[dof];
+    const L w = w_drive + s.passive_implicit[dof] + armature_k;
     s.implicit_diagonal[dof] = w;
     return w;
   }

@@ -1,0 +1,355 @@
+#include "batch/vec_env.hpp"
+
+#include <Eigen/Geometry>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace lockstep {
+
+namespace {
+
+void require(bool ok, const std::string& message) {
+  if (!ok) throw std::invalid_argument("VecEnv: " + message);
+}
+
+// Counter word 2 of each randomisation field (its place in randomization_fields()).
+enum Field : int {
+  kMassScale,
+  kComOffset,
+  kGroundFriction,
+  kKpScale,
+  kKdScale,
+  kDampingScale,
+  kArmatureAdd,
+  kGravityOffset,
+  kJointPositionNoise,
+  kJointVelocityNoise,
+  kRootPositionNoise,
+  kRootYawNoise,
+  kRootVelocityNoise,
+};
+
+bool is_free_dof(const Model& m, int k) { return m.body_joint[m.dof_body[k]] == JointType::Free; }
+
+VecEnvOptions checked(const Model& model, VecEnvOptions o) {
+  require(o.control_steps >= 1, "control_steps must be at least 1, got " + std::to_string(o.control_steps));
+  require(o.episode_steps >= 0, "episode_steps must be >= 0 (0: no truncation), got " + std::to_string(o.episode_steps));
+  validate_randomization(o.randomization);
+  if (o.initial_q.size() == 0) o.initial_q = model.neutral_configuration();
+  if (o.initial_v.size() == 0) o.initial_v = Eigen::VectorXd::Zero(model.nv);
+  require(o.initial_q.size() == model.nq, "initial_q expects " + std::to_string(model.nq) + " values, got " +
+                                              std::to_string(o.initial_q.size()));
+  require(o.initial_v.size() == model.nv, "initial_v expects " + std::to_string(model.nv) + " values, got " +
+                                              std::to_string(o.initial_v.size()));
+  if (o.dofs.empty()) o.dofs = default_dof_settings(model);
+  // The torque of every source is an observation.
+  o.step.record_applied_torque = true;
+  return o;
+}
+
+}  // namespace
+
+const char* action_mode_name(ActionMode mode) {
+  return mode == ActionMode::Torque ? "torque" : "position_target";
+}
+
+Observations::Observations(int copies, const Model& model, bool contacts)
+    : q(copies, model.nq), qd(copies, model.nv), base_position(copies, 3), base_orientation(copies, 4),
+      base_linear_velocity_world(copies, 3), base_angular_velocity_world(copies, 3),
+      base_linear_velocity_base(copies, 3), base_angular_velocity_base(copies, 3), projected_gravity(copies, 3),
+      applied_torque(copies, model.nv), contact_force(copies, contacts ? 3 * model.nbody : 0) {}
+
+VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options)
+    : options_(checked(model, std::move(options))), sim_(model, copies, options_.step, options_.dofs) {
+  for (int k = 0; k < model.nv; ++k)
+    if (!is_free_dof(model, k)) action_dofs_.push_back(k);
+  if (model.nbody > 0 && model.body_joint[0] != JointType::Free) {
+    const int root = model.articulations.front().root_frame;
+    if (model.frame_body[root] < 0) fixed_base_pose_ = model.frame_placement[root];
+  }
+  if (options_.action_mode == ActionMode::PositionTarget) {
+    bool any_gain = false;
+    for (int k : action_dofs_) any_gain |= options_.dofs[k].drive_stiffness > 0;
+    require(action_dofs_.empty() || any_gain,
+            "position_target actions need drive gains (DofSettings::drive_stiffness) on the actuated DOFs; none has any");
+  }
+  const bool contacts = sim_.plan()[static_cast<int>(Stage::Contacts)].runs;
+  observations_ = Observations(copies, model, contacts);
+  terminal_ = Observations(copies, model, contacts);
+  reward_out_ = Eigen::VectorXd::Zero(copies);
+  terminated_.assign(copies, 0);
+  truncated_.assign(copies, 0);
+  faulted_.assign(copies, 0);
+  last_fault_.assign(copies, Fault::None);
+  episode_step_.assign(copies, 0);
+  reset_count_.assign(copies, 0);
+}
+
+void VecEnv::reset() {
+  std::vector<int> all(copies());
+  for (int c = 0; c < copies(); ++c) all[c] = c;
+  reset_copies(all);
+  ready_ = true;
+}
+
+void VecEnv::reset(const std::vector<int>& which) {
+  for (int c : which)
+    if (c < 0 || c >= copies())
+      throw std::out_of_range("VecEnv::reset: copy " + std::to_string(c) + " outside [0, " +
+                              std::to_string(copies()) + ")");
+  reset_copies(which);
+}
+
+void VecEnv::reset_masked(const std::vector<std::uint8_t>& mask) {
+  if (static_cast<int>(mask.size()) != copies())
+    throw std::invalid_argument("VecEnv::reset_masked: the mask has " + std::to_string(mask.size()) +
+                                " entries for " + std::to_string(copies()) + " copies");
+  std::vector<int> which;
+  for (int c = 0; c < copies(); ++c)
+    if (mask[c]) which.push_back(c);
+  reset_copies(which);
+}
+
+void VecEnv::reset_copies(const std::vector<int>& which) {
+  for (int c : which) {
+    randomize(c, reset_count_[c]);
+    ++reset_count_[c];
+    episode_step_[c] = 0;
+    last_fault_[c] = Fault::None;
+  }
+  observe(&which, observations_);
+}
+
+// The copy's parameters and initial state for its reset number `reset`:
+// the configured values, each drawn field applied (docs/environments.md).
+void VecEnv::randomize(int c, std::uint32_t reset) {
+  const Model& m = model();
+  const Randomization& r = options_.randomization;
+  const std::uint64_t seed = options_.seed;
+  auto value = [&](int field, const UniformRange& range, int k) { return draw(range, seed, c, reset, field, k); };
+
+  for (int b = 0; b < m.nbody; ++b) {
+    const double scale = value(kMassScale, r.mass_scale, b);
+    Eigen::Vector3d com = m.body_com[b];
+    for (int axis = 0; axis < 3; ++axis) com[axis] += value(kComOffset, r.com_offset, 3 * b + axis);
+    sim_.set_body_inertia(c, b, scale * m.body_mass[b], com, scale * m.body_inertia[b]);
+  }
+  const ContactSettings& contact = options_.step.contacts;
+  if (r.randomize_ground_friction && contact.ground)
+    sim_.set_ground(c, contact.ground_height, contact.ground_normal, value(kGroundFriction, r.ground_friction, 0));
+
+  Eigen::VectorXd kp = Eigen::VectorXd::Zero(m.nv), kd = kp, damping = kp, armature = kp;
+  for (int k = 0; k < m.nv; ++k) {
+    const DofSettings& d = options_.dofs[k];
+    damping[k] = d.damping * value(kDampingScale, r.damping_scale, k);
+    armature[k] = m.dof_armature[k];
+    if (is_free_dof(m, k)) continue;  // a floating root takes no drive and no rotor
+    kp[k] = d.drive_stiffness * value(kKpScale, r.kp_scale, k);
+    kd[k] = d.drive_damping * value(kKdScale, r.kd_scale, k);
+    armature[k] += value(kArmatureAdd, r.armature_add, k);
+  }
+  sim_.set_drive_gains(c, kp, kd);
+  sim_.set_joint_damping(c, damping);
+  sim_.set_armature(c, armature);
+  Eigen::Vector3d gravity = m.gravity;
+  for (int axis = 0; axis < 3; ++axis) gravity[axis] += value(kGravityOffset, r.gravity_offset, axis);
+  sim_.set_gravity(c, gravity);
+
+  // Initial state: the configured one plus noise.
+  Eigen::VectorXd q = options_.initial_q, v = options_.initial_v;
+  for (int b = 0; b < m.nbody; ++b) {
+    const int qo = m.body_q_offset[b], k0 = m.body_dof_offset[b];
+    switch (m.body_joint[b]) {
+      case JointType::Revolute:
+      case JointType::Prismatic: {
+        const DofSettings& d = options_.dofs[k0];
+        q[qo] = std::clamp(q[qo] + value(kJointPositionNoise, r.joint_position_noise, k0), d.lower, d.upper);
+        v[k0] += value(kJointVelocityNoise, r.joint_velocity_noise, k0);
+        break;
+      }
+      case JointType::Spherical:
+        for (int i = 0; i < 3; ++i) v[k0 + i] += value(kJointVelocityNoise, r.joint_velocity_noise, k0 + i);
+        break;
+      case JointType::Free: {
+        q[qo] += value(kRootPositionNoise, r.root_position_noise, k0);
+        q[qo + 1] += value(kRootPositionNoise, r.root_position_noise, k0 + 1);
+        const double yaw = value(kRootYawNoise, r.root_yaw_noise, b);
+        const Eigen::Quaterniond turned = Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())) *
+                                          Eigen::Quaterniond(q[qo + 3], q[qo + 4], q[qo + 5], q[qo + 6]);
+        q.segment<4>(qo + 3) << turned.w(), turned.x(), turned.y(), turned.z();
+        for (int i = 0; i < 6; ++i) v[k0 + i] += value(kRootVelocityNoise, r.root_velocity_noise, k0 + i);
+        break;
+      }
+      case JointType::Fixed:
+        break;
+    }
+  }
+  sim_.set_state(c, q, v);  // also the copy's initial state
+  sim_.reset(c);            // warm start, contact counters and fault cleared
+  sim_.set_torque(c, Eigen::VectorXd::Zero(m.nv));
+  sim_.set_drive_target(c, options_.initial_q, Eigen::VectorXd::Zero(m.nv));
+}
+
+template <class F>
+void VecEnv::visit_batch(F&& f) {
+  if (options_.step.precision == Precision::Float)
+    f(sim_.batch<float>());
+  else
+    f(sim_.batch<double>());
+}
+
+template <class F>
+void VecEnv::visit_batch(F&& f) const {
+  if (options_.step.precision == Precision::Float)
+    f(sim_.batch<float>());
+  else
+    f(sim_.batch<double>());
+}
+
+void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
+  const Model& m = model();
+  visit_batch([&](auto& b) {
+    using T = std::decay_t<decltype(b.state.q.at(0, 0))>;
+    tbb::parallel_for(tbb::blocked_range<int>(0, copies(), 256), [&](const tbb::blocked_range<int>& range) {
+      for (int c = range.begin(); c < range.end(); ++c) {
+        if (options_.action_mode == ActionMode::Torque) {
+          for (int a = 0; a < action_size(); ++a) b.state.tau.at(c, action_dofs_[a]) = static_cast<T>(actions(c, a));
+          continue;
+        }
+        for (int a = 0; a < action_size();) {
+          const int body = m.dof_body[action_dofs_[a]], qo = m.body_q_offset[body];
+          if (m.body_joint[body] != JointType::Spherical) {
+            b.target_q.at(c, qo) = static_cast<T>(actions(c, a));
+            ++a;
+            continue;
+          }
+          // a rotation vector r: the target exp(r) (a non-finite r faults the copy)
+          const Eigen::Vector3d rotation(actions(c, a), actions(c, a + 1), actions(c, a + 2));
+          const double angle = rotation.norm();
+          const Eigen::Quaterniond target =
+              angle > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, rotation / angle)) : Eigen::Quaterniond::Identity();
+          const double wxyz[4] = {target.w(), target.x(), target.y(), target.z()};
+          for (int i = 0; i < 4; ++i) b.target_q.at(c, qo + i) = static_cast<T>(std::isfinite(angle) ? wxyz[i] : angle);
+          a += 3;
+        }
+      }
+    });
+  });
+}
+
+void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
+  if (!ready_) throw std::logic_error("VecEnv::step: call reset() first");
+  if (actions.rows() != copies() || actions.cols() != action_size())
+    throw std::invalid_argument("VecEnv::step: actions must be " + std::to_string(copies()) + " x " +
+                                std::to_string(action_size()) + ", got " + std::to_string(actions.rows()) + " x " +
+                                std::to_string(actions.cols()));
+  apply_actions(actions);
+  sim_.step(options_.control_steps);
+  observe(nullptr, observations_);
+
+  reward_out_.setZero();
+  std::fill(terminated_.begin(), terminated_.end(), 0);
+  if (reward_) {
+    reward_(observations_, actions, reward_out_, terminated_);
+    if (reward_out_.size() != copies() || static_cast<int>(terminated_.size()) != copies())
+      throw std::logic_error("VecEnv::step: the reward function resized its outputs");
+  }
+  std::vector<int> ended;
+  for (int c = 0; c < copies(); ++c) {
+    last_fault_[c] = sim_.fault(c);
+    faulted_[c] = last_fault_[c] != Fault::None;
+    if (faulted_[c]) terminated_[c] = 1, reward_out_[c] = 0;
+    ++episode_step_[c];
+    truncated_[c] = !terminated_[c] && options_.episode_steps > 0 && episode_step_[c] >= options_.episode_steps;
+    if (terminated_[c] || truncated_[c]) ended.push_back(c);
+  }
+  ++steps_;
+  if (!options_.auto_reset || ended.empty()) return;
+  copy_rows(ended, observations_, terminal_);
+  for (int c : ended) {
+    const Fault reason = last_fault_[c];
+    reset_copies({c});
+    last_fault_[c] = reason;  // the last step's reason stays readable
+  }
+}
+
+void VecEnv::copy_rows(const std::vector<int>& rows, const Observations& from, Observations& to) {
+  auto fields = [](auto& o) {
+    return std::array{&o.q, &o.qd, &o.base_position, &o.base_orientation, &o.base_linear_velocity_world,
+                      &o.base_angular_velocity_world, &o.base_linear_velocity_base, &o.base_angular_velocity_base,
+                      &o.projected_gravity, &o.applied_torque, &o.contact_force};
+  };
+  const auto source = fields(from);
+  const auto target = fields(to);
+  for (std::size_t f = 0; f < source.size(); ++f)
+    for (int c : rows) target[f]->row(c) = source[f]->row(c);
+}
+
+// One copy's observation row from the batch (T: the precision).
+template <class Batch>
+void VecEnv::observe_copy(const Batch& b, int c, Observations& o) const {
+  const Model& m = model();
+  for (int i = 0; i < m.nq; ++i) o.q(c, i) = b.state.q.at(c, i);
+  for (int k = 0; k < m.nv; ++k) {
+    o.qd(c, k) = b.state.v.at(c, k);
+    o.applied_torque(c, k) = double(b.applied_drive.at(c, k)) + double(b.applied_passive.at(c, k)) +
+                             double(b.applied_friction.at(c, k)) + double(b.applied_limits.at(c, k));
+  }
+  Eigen::Vector3d position, linear_base = Eigen::Vector3d::Zero(), angular_base = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond orientation;
+  if (m.body_joint[0] == JointType::Free) {
+    position = o.q.row(c).segment<3>(0).transpose();
+    orientation = Eigen::Quaterniond(o.q(c, 3), o.q(c, 4), o.q(c, 5), o.q(c, 6));
+    linear_base = o.qd.row(c).segment<3>(0).transpose();
+    angular_base = o.qd.row(c).segment<3>(3).transpose();
+  } else {
+    const Eigen::Isometry3d& root = fixed_base_pose_;
+    position = root.translation();
+    orientation = Eigen::Quaterniond(root.linear());
+  }
+  const Eigen::Matrix3d R = orientation.normalized().toRotationMatrix();  // a float quaternion is unit to ~1e-7
+  o.base_position.row(c) = position.transpose();
+  o.base_orientation.row(c) << orientation.w(), orientation.x(), orientation.y(), orientation.z();
+  o.base_linear_velocity_base.row(c) = linear_base.transpose();
+  o.base_angular_velocity_base.row(c) = angular_base.transpose();
+  o.base_linear_velocity_world.row(c) = (R * linear_base).transpose();
+  o.base_angular_velocity_world.row(c) = (R * angular_base).transpose();
+  const Eigen::Vector3d g(b.state.gravity.at(c, 0), b.state.gravity.at(c, 1), b.state.gravity.at(c, 2));
+  const double norm = g.norm();
+  const Eigen::Vector3d down = norm > 0 ? Eigen::Vector3d(R.transpose() * g / norm) : Eigen::Vector3d::Zero();
+  o.projected_gravity.row(c) = down.transpose();
+  if (o.contact_force.cols() > 0) {
+    const Eigen::Matrix<double, 6, Eigen::Dynamic> wrenches = sim_.body_contact_wrenches(c);
+    for (int body = 0; body < m.nbody; ++body) o.contact_force.row(c).segment<3>(3 * body) = wrenches.col(body).head<3>();
+  }
+}
+
+void VecEnv::observe(const std::vector<int>* which, Observations& o) const {
+  visit_batch([&](const auto& b) {
+    if (which) {
+      for (int c : *which) observe_copy(b, c, o);
+      return;
+    }
+    tbb::parallel_for(tbb::blocked_range<int>(0, copies(), 64), [&](const tbb::blocked_range<int>& range) {
+      for (int c = range.begin(); c < range.end(); ++c) observe_copy(b, c, o);
+    });
+  });
+}
+
+EnvCopyState VecEnv::state(int copy) const {
+  return {sim_.snapshot(copy), episode_step_.at(copy), reset_count_.at(copy)};
+}
+
+void VecEnv::set_state(int copy, const EnvCopyState& s) {
+  sim_.restore(copy, s.simulator);
+  episode_step_.at(copy) = s.episode_step;
+  reset_count_.at(copy) = s.reset_count;
+  last_fault_[copy] = sim_.fault(copy);
+  const std::vector<int> one{copy};
+  observe(&one, observations_);
+}
+
+}  // namespace lockstep

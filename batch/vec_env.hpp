@@ -1,0 +1,173 @@
+// A vectorised environment over the simulator: N copies of a scene that a
+// learning loop resets and steps together, with actions in and observations
+// out through contiguous buffers, per-copy randomisation at reset, episode
+// bookkeeping (terminated, truncated, auto-reset with the terminal
+// observation kept) and fault isolation.
+//
+//   lockstep::VecEnvOptions options;
+//   options.action_mode = lockstep::ActionMode::PositionTarget;
+//   options.episode_steps = 1000;
+//   options.randomization.mass_scale = {0.9, 1.1};
+//   lockstep::VecEnv env(model, 4096, options);
+//   env.set_reward([](const lockstep::Observations& obs, const lockstep::RowMatrix& actions,
+//                     Eigen::VectorXd& reward, std::vector<std::uint8_t>& terminated) { ... });
+//   env.reset();
+//   for (;;) {
+//     policy(env.observations(), actions);   // actions: N x env.action_size()
+//     env.step(actions);
+//     // env.reward(), env.terminated(), env.truncated(), env.terminal_observations()
+//   }
+//
+// Everything a copy does depends only on its own inputs, the seed and its
+// own reset count: never on threads, batch size or the other copies.
+#pragma once
+
+#include "batch/randomization.hpp"
+#include "batch/simulator.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace lockstep {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// What an action sets, for each DOF that is not a floating root's (the
+// actuated DOFs, low-level order): its feedforward torque, or its drive's
+// position target (velocity target 0). A Spherical joint's three values are
+// then a rotation vector r: target quaternion exp(r).
+enum class ActionMode { Torque, PositionTarget };
+const char* action_mode_name(ActionMode mode);
+
+struct VecEnvOptions {
+  StepOptions step;
+  std::vector<DofSettings> dofs;  // empty: default_dof_settings(model)
+  ActionMode action_mode = ActionMode::Torque;
+  int control_steps = 1;   // simulator steps per env step, the action held
+  int episode_steps = 0;   // env steps before an episode is truncated; 0: never
+  bool auto_reset = true;  // a copy whose episode ended restarts within the same step()
+  std::uint64_t seed = 0;
+  Randomization randomization;
+  // The initial state before noise ((nq), (nv)); empty: the neutral
+  // configuration at rest. Also the drive targets of Torque mode.
+  Eigen::VectorXd initial_q, initial_v;
+};
+
+// Observations, one row per copy, each field contiguous (row-major): read
+// them in place. The base is the first articulation's root body: its pose
+// and twist from q and v when it floats, else the fixed root frame at rest.
+struct Observations {
+  RowMatrix q, qd;                          // (N x nq), (N x nv), low-level order; qd as v (Free: body-frame twist)
+  RowMatrix base_position;                  // (N x 3) world
+  RowMatrix base_orientation;               // (N x 4) world, w x y z
+  RowMatrix base_linear_velocity_world;     // (N x 3) of the base frame's origin
+  RowMatrix base_angular_velocity_world;    // (N x 3)
+  RowMatrix base_linear_velocity_base;      // (N x 3) the same two in base axes
+  RowMatrix base_angular_velocity_base;     // (N x 3)
+  RowMatrix projected_gravity;              // (N x 3) unit gravity direction in base axes
+  RowMatrix applied_torque;                 // (N x nv) joint torque of the last simulator step, all sources (RaiSim's)
+  RowMatrix contact_force;                  // (N x 3 nbody) net contact force on each body, world [N]; no columns without contacts
+  Observations() = default;
+  Observations(int copies, const Model& model, bool contacts);
+};
+
+// The user's reward and termination, called once per step() after the
+// simulation with the new observations and the step's actions; reward and
+// terminated come in zeroed (N). A faulted copy is terminated with reward 0
+// whatever the function says.
+using RewardFunction = std::function<void(const Observations& observations, const RowMatrix& actions,
+                                          Eigen::VectorXd& reward, std::vector<std::uint8_t>& terminated)>;
+
+// A copy's whole state: the simulator's snapshot (state, inputs, per-copy
+// parameters, solver warm start) and its episode bookkeeping. Writing it
+// into a copy of an environment built with the same model and options
+// replays the copy bit for bit.
+struct EnvCopyState {
+  CopySnapshot simulator;
+  int episode_step = 0;
+  std::uint32_t reset_count = 0;
+};
+
+class VecEnv {
+ public:
+  // Throws std::invalid_argument naming the option that is wrong. Call
+  // reset() before the first step().
+  VecEnv(const Model& model, int copies, VecEnvOptions options);
+
+  const Model& model() const { return sim_.model(); }
+  const VecEnvOptions& options() const { return options_; }
+  int copies() const { return sim_.copies(); }
+  int action_size() const { return static_cast<int>(action_dofs_.size()); }
+  const std::vector<int>& action_dofs() const { return action_dofs_; }  // DOF of each action column
+  void set_reward(RewardFunction reward) { reward_ = std::move(reward); }
+
+  // Restart copies: new randomisation draws and initial-state noise (their
+  // reset count goes up), warm start and faults cleared, episode step 0,
+  // observations rewritten. The mask has one entry per copy (non-zero: reset).
+  void reset();
+  void reset(const std::vector<int>& copies);
+  void reset_masked(const std::vector<std::uint8_t>& mask);
+
+  // One env step: the actions (N x action_size()) held for control_steps
+  // simulator steps, then observations, reward, termination and truncation;
+  // with auto_reset the copies that ended are reset after their terminal
+  // observation is kept. A non-finite action faults its copy only.
+  void step(const Eigen::Ref<const RowMatrix>& actions);
+
+  const Observations& observations() const { return observations_; }
+  // Rows of the copies that ended in the last step, as they ended (before
+  // the auto-reset); other rows are stale.
+  const Observations& terminal_observations() const { return terminal_; }
+  const Eigen::VectorXd& reward() const { return reward_out_; }
+  const std::vector<std::uint8_t>& terminated() const { return terminated_; }
+  const std::vector<std::uint8_t>& truncated() const { return truncated_; }
+  // Copies whose state or inputs went non-finite in the last step (they are
+  // also terminated, and reset with auto_reset); fault() gives the reason
+  // seen in the last step until an explicit reset.
+  const std::vector<std::uint8_t>& faulted() const { return faulted_; }
+  Fault fault(int copy) const { return last_fault_[copy]; }
+  const std::vector<int>& episode_step() const { return episode_step_; }
+  const std::vector<std::uint32_t>& reset_count() const { return reset_count_; }
+  std::int64_t steps() const { return steps_; }  // env steps since construction
+
+  EnvCopyState state(int copy) const;
+  void set_state(int copy, const EnvCopyState& state);
+
+  // The simulator underneath, for what this class does not wrap.
+  Simulator& simulator() { return sim_; }
+  const Simulator& simulator() const { return sim_; }
+
+ private:
+  void reset_copies(const std::vector<int>& copies);
+  void randomize(int copy, std::uint32_t reset);
+  void apply_actions(const Eigen::Ref<const RowMatrix>& actions);
+  // Observation rows of `copies` (all when null) from the simulator.
+  void observe(const std::vector<int>* copies, Observations& out) const;
+  template <class Batch>
+  void observe_copy(const Batch& batch, int copy, Observations& out) const;
+  static void copy_rows(const std::vector<int>& rows, const Observations& from, Observations& to);
+  // f(sim_.batch<T>()) for the chosen precision T.
+  template <class F>
+  void visit_batch(F&& f);
+  template <class F>
+  void visit_batch(F&& f) const;
+
+  VecEnvOptions options_;
+  Simulator sim_;
+  std::vector<int> action_dofs_;
+  Eigen::Isometry3d fixed_base_pose_ = Eigen::Isometry3d::Identity();  // the base when it does not float
+  bool ready_ = false;  // reset() was called
+  RewardFunction reward_;
+  Observations observations_, terminal_;
+  Eigen::VectorXd reward_out_;
+  std::vector<std::uint8_t> terminated_, truncated_, faulted_;
+  std::vector<Fault> last_fault_;
+  std::vector<int> episode_step_;
+  std::vector<std::uint32_t> reset_count_;
+  std::int64_t steps_ = 0;
+};
+
+}  // namespace lockstep

@@ -1,0 +1,367 @@
+// The vectorised environment: observations, actions, randomisation at
+// reset, episodes and auto-reset, fault isolation, and copy states that
+// replay bit for bit.
+#include "batch/vec_env.hpp"
+#include "tests/sim_support.hpp"
+#include "tools/step_scene.hpp"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+namespace lockstep {
+namespace {
+
+using test::same_bits;
+
+// anymal_b standing on the ground under position targets, 4 simulator
+// steps per env step, with every randomisation on.
+VecEnvOptions standing_options(const Model& model, Precision precision = Precision::Float) {
+  const step_scene::Scene scene = step_scene::make_scene(model, true);
+  VecEnvOptions o;
+  o.step.precision = precision;
+  o.step.contacts.ground = true;
+  o.dofs = scene.dofs;
+  for (DofSettings& d : o.dofs) d.damping = d.drive_stiffness > 0 ? 0.05 : 0.0;
+  o.action_mode = ActionMode::PositionTarget;
+  o.control_steps = 4;
+  o.seed = 11;
+  o.initial_q = scene.q0;
+  Randomization& r = o.randomization;
+  r.mass_scale = {0.8, 1.2};
+  r.com_offset = {-0.01, 0.01};
+  r.randomize_ground_friction = true;
+  r.ground_friction = {0.4, 1.2};
+  r.kp_scale = {0.9, 1.1};
+  r.kd_scale = {0.9, 1.1};
+  r.damping_scale = {0.5, 2.0};
+  r.armature_add = {0.0, 0.01};
+  r.gravity_offset = {-0.2, 0.2};
+  r.joint_position_noise = {-0.05, 0.05};
+  r.joint_velocity_noise = {-0.1, 0.1};
+  r.root_position_noise = {-0.1, 0.1};
+  r.root_yaw_noise = {-0.5, 0.5};
+  r.root_velocity_noise = {-0.05, 0.05};
+  return o;
+}
+
+const Model& anymal() {
+  static const Model model = test::load_shared_model("anymal_b", true);
+  return model;
+}
+
+// Actions of copy `copy` at env step t: the standing pose plus a wave, the
+// same wherever the copy sits in a batch.
+RowMatrix wave_actions(const VecEnv& env, const std::vector<int>& copy_ids, int t) {
+  RowMatrix a(static_cast<int>(copy_ids.size()), env.action_size());
+  for (int r = 0; r < a.rows(); ++r)
+    for (int j = 0; j < a.cols(); ++j) {
+      const int dof = env.action_dofs()[j];
+      const int qi = env.model().body_q_offset[env.model().dof_body[dof]];
+      a(r, j) = env.options().initial_q[qi] + 0.2 * std::sin(0.1 * t + 0.7 * j + 0.3 * copy_ids[r]);
+    }
+  return a;
+}
+
+std::vector<int> iota(int n, int first = 0) {
+  std::vector<int> ids(n);
+  for (int i = 0; i < n; ++i) ids[i] = first + i;
+  return ids;
+}
+
+TEST(VecEnv, ObservationsDescribeTheSimulatorState) {
+  VecEnv env(anymal(), 5, standing_options(anymal()));
+  env.reset();
+  env.step(wave_actions(env, iota(5), 0));
+  const Observations& o = env.observations();
+  const Simulator& sim = env.simulator();
+  ASSERT_EQ(o.q.rows(), 5);
+  ASSERT_EQ(o.contact_force.cols(), 3 * anymal().nbody);
+  for (int c = 0; c < 5; ++c) {
+    EXPECT_TRUE(same_bits(o.q.row(c).transpose(), sim.q(c)));
+    EXPECT_TRUE(same_bits(o.qd.row(c).transpose(), sim.v(c)));
+    const Eigen::Quaterniond R = Eigen::Quaterniond(o.q(c, 3), o.q(c, 4), o.q(c, 5), o.q(c, 6)).normalized();
+    EXPECT_EQ(o.base_position.row(c), o.q.row(c).head<3>());
+    EXPECT_TRUE(o.base_linear_velocity_world.row(c).transpose().isApprox(
+        R * o.qd.row(c).head<3>().transpose(), 1e-12));
+    EXPECT_TRUE(o.base_angular_velocity_world.row(c).transpose().isApprox(
+        R * o.qd.row(c).segment<3>(3).transpose(), 1e-12));
+    const Eigen::Vector3d g = Eigen::Vector3d(sim.batch<float>().state.gravity.get(c)).normalized();
+    EXPECT_TRUE(o.projected_gravity.row(c).transpose().isApprox(R.inverse() * g, 1e-12));
+    const AppliedTorque applied = sim.applied_torque(c);
+    EXPECT_TRUE(o.applied_torque.row(c).transpose().isApprox(
+        applied.drive + applied.passive + applied.friction + applied.limits, 1e-12));
+    const Eigen::Matrix<double, 6, Eigen::Dynamic> wrenches = sim.body_contact_wrenches(c);
+    for (int b = 0; b < anymal().nbody; ++b)
+      EXPECT_EQ(o.contact_force.row(c).segment<3>(3 * b), wrenches.col(b).head<3>().transpose());
+  }
+}
+
+// Standing under the drives, the ground carries the robot: the feet's
+// contact forces add up to its weight (the copy's own mass and gravity).
+TEST(VecEnv, ContactForcesCarryTheWeightOfAStandingRobot) {
+  VecEnvOptions options = standing_options(anymal());
+  options.randomization = {};
+  VecEnv env(anymal(), 3, options);
+  env.reset();
+  RowMatrix hold(3, env.action_size());
+  for (int j = 0; j < env.action_size(); ++j)
+    hold.col(j).setConstant(options.initial_q[anymal().body_q_offset[anymal().dof_body[env.action_dofs()[j]]]]);
+  for (int t = 0; t < 250; ++t) env.step(hold);  // 2 s
+  const double weight = 9.81 * anymal().total_mass();
+  for (int c = 0; c < 3; ++c) {
+    double vertical = 0;
+    for (int b = 0; b < anymal().nbody; ++b) vertical += env.observations().contact_force(c, 3 * b + 2);
+    // at rest to the solver's residual: 1 % of the weight
+    EXPECT_NEAR(vertical, weight, 0.01 * weight) << "copy " << c;
+    EXPECT_LT(env.observations().base_linear_velocity_world.row(c).norm(), 1e-2);
+  }
+}
+
+TEST(VecEnv, ResetDrawsEveryParameterInItsRangePerCopyAndPerReset) {
+  const VecEnvOptions options = standing_options(anymal());
+  VecEnv env(anymal(), 4, options);
+  env.reset();
+  const auto& b = env.simulator().batch<float>();
+  const Model& m = anymal();
+  std::set<float> masses;
+  for (int c = 0; c < 4; ++c) {
+    for (int body = 0; body < m.nbody; ++body) {
+      const double mass = b.state.inertia.at(c, 10 * body);
+      EXPECT_GE(mass, 0.8 * m.body_mass[body] * (1 - 1e-6));
+      EXPECT_LE(mass, 1.2 * m.body_mass[body] * (1 + 1e-6));
+      masses.insert(static_cast<float>(mass / m.body_mass[body]));
+    }
+    const double mu = b.ground_friction.at(c, 0);
+    EXPECT_GE(mu, 0.4);
+    EXPECT_LE(mu, 1.2);
+    for (int axis = 0; axis < 3; ++axis) EXPECT_NEAR(b.state.gravity.at(c, axis), m.gravity[axis], 0.2 + 1e-6);
+    for (int k : env.action_dofs()) {
+      EXPECT_GE(b.armature.at(c, k), 0.0f);
+      EXPECT_LE(b.armature.at(c, k), 0.01f + 1e-6f);
+      EXPECT_GE(b.drive_stiffness.at(c, k), 0.9 * options.dofs[k].drive_stiffness * (1 - 1e-6));
+      EXPECT_LE(b.drive_stiffness.at(c, k), 1.1 * options.dofs[k].drive_stiffness * (1 + 1e-6));
+    }
+    const Eigen::VectorXd q = env.simulator().q(c);
+    EXPECT_NEAR(q[0], options.initial_q[0], 0.1 + 1e-6);
+    EXPECT_EQ(q[2], static_cast<float>(options.initial_q[2]));  // root height: no noise
+  }
+  EXPECT_EQ(masses.size(), static_cast<std::size_t>(4 * m.nbody));  // every body of every copy its own draw
+  const CopySnapshot before = env.simulator().snapshot(2);
+  env.reset(std::vector<int>{2});
+  EXPECT_EQ(env.reset_count()[2], 2u);
+  EXPECT_EQ(env.reset_count()[1], 1u);
+  EXPECT_NE(env.simulator().snapshot(2).parameters, before.parameters);  // a new draw
+}
+
+// Copy c of any batch, on any thread count, draws and steps the same.
+TEST(VecEnv, CopiesDoNotDependOnBatchSizeOrThreads) {
+  const VecEnvOptions options = standing_options(anymal());
+  auto run = [&](int copies, int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    VecEnv env(anymal(), copies, options);
+    env.reset();
+    for (int t = 0; t < 20; ++t) env.step(wave_actions(env, iota(copies), t));
+    return env;
+  };
+  const VecEnv reference = run(3, 1);
+  for (const auto& [copies, threads] : {std::pair{3, 2}, std::pair{37, 2}, std::pair{37, 1}}) {
+    const VecEnv other = run(copies, threads);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_TRUE(same_bits(reference.observations().q.row(c).transpose(), other.observations().q.row(c).transpose()))
+          << copies << " copies, " << threads << " threads, copy " << c;
+      EXPECT_TRUE(same_bits(reference.simulator().snapshot(c).parameters, other.simulator().snapshot(c).parameters));
+    }
+  }
+}
+
+// A copy's state written into another environment (another position,
+// another batch size) replays it bit for bit, warm start included.
+TEST(VecEnv, AWrittenCopyStateReplaysBitForBit) {
+  const VecEnvOptions options = standing_options(anymal(), Precision::Double);
+  VecEnv source(anymal(), 4, options);
+  source.reset();
+  for (int t = 0; t < 30; ++t) source.step(wave_actions(source, iota(4), t));
+  const EnvCopyState saved = source.state(1);
+  VecEnv target(anymal(), 9, options);
+  target.reset();
+  target.set_state(6, saved);
+  EXPECT_TRUE(same_bits(target.observations().q.row(6).transpose(), source.observations().q.row(1).transpose()));
+  for (int t = 30; t < 60; ++t) {
+    source.step(wave_actions(source, iota(4), t));
+    std::vector<int> ids = iota(9, 200);
+    ids[6] = 1;
+    target.step(wave_actions(target, ids, t));
+    ASSERT_TRUE(same_bits(target.observations().q.row(6).transpose(), source.observations().q.row(1).transpose()))
+        << "env step " << t;
+    ASSERT_TRUE(same_bits(target.observations().qd.row(6).transpose(), source.observations().qd.row(1).transpose()));
+  }
+  EXPECT_EQ(target.episode_step()[6], source.episode_step()[1]);
+}
+
+TEST(VecEnv, EpisodesTruncateAndAutoResetKeepingTheTerminalObservation) {
+  VecEnvOptions options = standing_options(anymal());
+  options.episode_steps = 3;
+  VecEnv env(anymal(), 2, options);
+  VecEnvOptions manual_options = options;
+  manual_options.auto_reset = false;
+  VecEnv manual(anymal(), 2, manual_options);
+  env.reset();
+  manual.reset();
+  for (int t = 0; t < 3; ++t) {
+    env.step(wave_actions(env, iota(2), t));
+    manual.step(wave_actions(manual, iota(2), t));
+    const bool last = t == 2;
+    for (int c = 0; c < 2; ++c) {
+      EXPECT_EQ(env.truncated()[c], last ? 1 : 0);
+      EXPECT_EQ(env.terminated()[c], 0);
+      EXPECT_EQ(manual.truncated()[c], last ? 1 : 0);
+    }
+  }
+  // auto-reset: the terminal rows are where the manual env stands; the
+  // observations are a fresh episode's, like the manual env after reset().
+  for (int c = 0; c < 2; ++c) {
+    EXPECT_TRUE(same_bits(env.terminal_observations().q.row(c).transpose(), manual.observations().q.row(c).transpose()));
+    EXPECT_EQ(env.episode_step()[c], 0);
+    EXPECT_EQ(env.reset_count()[c], 2u);
+    EXPECT_EQ(manual.episode_step()[c], 3);
+  }
+  manual.reset_masked({1, 1});
+  for (int c = 0; c < 2; ++c)
+    EXPECT_TRUE(same_bits(env.observations().q.row(c).transpose(), manual.observations().q.row(c).transpose()));
+  // without auto-reset the episode stays truncated until reset
+  manual.reset_masked({0, 0});
+  EXPECT_EQ(manual.reset_count()[0], 2u);
+}
+
+TEST(VecEnv, TheRewardFunctionSetsRewardsAndTerminations) {
+  VecEnvOptions options = standing_options(anymal());
+  VecEnv env(anymal(), 4, options);
+  int calls = 0;
+  env.set_reward([&](const Observations& obs, const RowMatrix& actions, Eigen::VectorXd& reward,
+                     std::vector<std::uint8_t>& terminated) {
+    ++calls;
+    EXPECT_EQ(actions.rows(), 4);
+    EXPECT_TRUE((reward.array() == 0).all());
+    for (int c = 0; c < 4; ++c) {
+      reward[c] = obs.base_position(c, 2);
+      terminated[c] = c == 3;
+    }
+  });
+  env.reset();
+  env.step(wave_actions(env, iota(4), 0));
+  EXPECT_EQ(calls, 1);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_EQ(env.reward()[c], env.observations().base_position(c, 2));
+    EXPECT_EQ(env.terminated()[c], 0);
+  }
+  EXPECT_EQ(env.terminated()[3], 1);
+  EXPECT_EQ(env.reward()[3], env.terminal_observations().base_position(3, 2));
+  EXPECT_EQ(env.episode_step()[3], 0);
+  EXPECT_EQ(env.episode_step()[0], 1);
+}
+
+// A non-finite action faults its copy only: the others step as without it,
+// and the faulted copy is reported, terminated and restarted.
+TEST(VecEnv, AFaultedCopyIsIsolatedReportedAndReset) {
+  VecEnvOptions options = standing_options(anymal());
+  options.action_mode = ActionMode::Torque;
+  VecEnv env(anymal(), 3, options), clean(anymal(), 3, options);
+  env.reset();
+  clean.reset();
+  RowMatrix actions = RowMatrix::Zero(3, env.action_size());
+  env.step(actions);
+  clean.step(actions);
+  actions(1, 2) = std::numeric_limits<double>::quiet_NaN();
+  env.step(actions);
+  actions(1, 2) = 0;
+  clean.step(actions);
+  EXPECT_EQ(env.faulted(), (std::vector<std::uint8_t>{0, 1, 0}));
+  EXPECT_EQ(env.fault(1), Fault::NonFiniteTorque);
+  EXPECT_EQ(env.terminated()[1], 1);
+  EXPECT_EQ(env.reward()[1], 0.0);
+  EXPECT_EQ(env.reset_count()[1], 2u);
+  EXPECT_TRUE(env.observations().q.row(1).allFinite());
+  for (int c : {0, 2})
+    EXPECT_TRUE(same_bits(env.observations().q.row(c).transpose(), clean.observations().q.row(c).transpose()));
+  env.step(actions);
+  EXPECT_EQ(env.faulted()[1], 0);
+  EXPECT_EQ(env.fault(1), Fault::None);
+}
+
+TEST(VecEnv, TorqueAndPositionTargetActionsReachTheSimulator) {
+  VecEnvOptions options = standing_options(anymal());
+  options.randomization = {};
+  options.action_mode = ActionMode::Torque;
+  VecEnv torque(anymal(), 2, options);
+  torque.reset();
+  RowMatrix a = RowMatrix::Constant(2, torque.action_size(), 1.5);
+  a(1, 0) = -2.0;
+  torque.step(a);
+  const auto& bt = torque.simulator().batch<float>();
+  EXPECT_EQ(bt.state.tau.at(1, torque.action_dofs()[0]), -2.0f);
+  EXPECT_EQ(bt.state.tau.at(0, 0), 0.0f);  // the floating root takes no action
+  EXPECT_EQ(torque.action_size(), anymal().nv - 6);
+
+  options.action_mode = ActionMode::PositionTarget;
+  VecEnv target(anymal(), 2, options);
+  target.reset();
+  target.step(wave_actions(target, iota(2), 5));
+  const RowMatrix expected = wave_actions(target, iota(2), 5);
+  const auto& bp = target.simulator().batch<float>();
+  for (int j = 0; j < target.action_size(); ++j) {
+    const int qi = anymal().body_q_offset[anymal().dof_body[target.action_dofs()[j]]];
+    EXPECT_EQ(bp.target_q.at(1, qi), static_cast<float>(expected(1, j)));
+  }
+}
+
+// Per-copy armature and damping act as the model's and DofSettings' do.
+TEST(VecEnv, PerCopyArmatureAndDampingMatchTheModelsOwn) {
+  Model with = test::rod_chain({1.0, 0.5}, 0.4);
+  Model without = with;
+  with.dof_armature = {0.02, 0.03};
+  std::vector<DofSettings> damped = default_dof_settings(with);
+  damped[0].damping = 0.4;
+  damped[1].damping = 0.1;
+  StepOptions options;
+  options.precision = Precision::Double;
+  Simulator reference(with, 1, options, damped);
+  Simulator per_copy(without, 1, options);
+  per_copy.set_armature(0, Eigen::Vector2d(0.02, 0.03));
+  per_copy.set_joint_damping(0, Eigen::Vector2d(0.4, 0.1));
+  const Eigen::Vector2d q0(0.7, -0.4), v0(0.5, 1.0);
+  reference.set_state(0, q0, v0);
+  per_copy.set_state(0, q0, v0);
+  reference.step(200);
+  per_copy.step(200);
+  EXPECT_TRUE(test::same_state(reference, 0, per_copy, 0));
+  // and they matter: without them the chain moves differently
+  Simulator plain(without, 1, options);
+  plain.set_state(0, q0, v0);
+  plain.step(200);
+  EXPECT_GT((plain.q(0) - reference.q(0)).norm(), 1e-3);
+}
+
+TEST(VecEnv, RejectsBadUseWithClearErrors) {
+  VecEnvOptions options = standing_options(anymal());
+  VecEnv env(anymal(), 2, options);
+  EXPECT_THROW(env.step(RowMatrix::Zero(2, env.action_size())), std::logic_error);  // before reset
+  env.reset();
+  EXPECT_THROW(env.step(RowMatrix::Zero(3, env.action_size())), std::invalid_argument);
+  EXPECT_THROW(env.reset(std::vector<int>{2}), std::out_of_range);
+  EXPECT_THROW(env.reset_masked({1}), std::invalid_argument);
+  VecEnvOptions bad = options;
+  bad.control_steps = 0;
+  EXPECT_THROW(VecEnv(anymal(), 2, bad), std::invalid_argument);
+  bad = options;
+  bad.initial_q = Eigen::VectorXd::Zero(3);
+  EXPECT_THROW(VecEnv(anymal(), 2, bad), std::invalid_argument);
+  bad = options;
+  bad.randomization.mass_scale = {1.2, 0.8};
+  EXPECT_THROW(VecEnv(anymal(), 2, bad), std::invalid_argument);
+  bad = options;
+  for (DofSettings& d : bad.dofs) d.drive_stiffness = 0;
+  EXPECT_THROW(VecEnv(anymal(), 2, bad), std::invalid_argument);  // position targets without gains
+}
+
+}  // namespace
+}  // namespace lockstep
