@@ -152,6 +152,8 @@ Simulator::Simulator(Simulator&&) noexcept = default;
 Simulator& Simulator::operator=(Simulator&&) noexcept = default;
 
 int Simulator::copies() const { return engine_->copies(); }
+void Simulator::set_profiling(bool on) { engine_->set_profiling(on); }
+StepProfile Simulator::profile() const { return engine_->profile(); }
 int Simulator::row_count() const { return engine_->rows(); }
 std::size_t Simulator::bytes_per_copy() const { return engine_->bytes_per_copy(); }
 
@@ -535,10 +537,10 @@ void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& norma
   });
 }
 
-std::vector<Contact> Simulator::contacts(int copy) const {
+template <class F>
+void Simulator::visit_contacts(int copy, F&& f) const {
   check_copy(copy);
-  std::vector<Contact> out;
-  if (!plan_[static_cast<int>(Stage::Contacts)].runs || pairs_.pairs.empty()) return out;
+  if (!plan_[static_cast<int>(Stage::Contacts)].runs || pairs_.pairs.empty()) return;
   const double h = options_.dt / options_.substeps;
   visit([&](auto& b) {
     using T = std::decay_t<decltype(b.contact_id.at(0, 0))>;
@@ -566,19 +568,34 @@ std::vector<Contact> Simulator::contacts(int copy) const {
       contact.force = (impulse(0) * contact.normal + impulse(1) * Eigen::Vector3d(t1.x, t1.y, t1.z) +
                        impulse(2) * Eigen::Vector3d(t2.x, t2.y, t2.z)) / h;
       contact.torsion = k > 3 ? impulse(3) / h : 0.0;
-      out.push_back(contact);
+      f(contact);
     }
   });
+}
+
+std::vector<Contact> Simulator::contacts(int copy) const {
+  std::vector<Contact> out;
+  visit_contacts(copy, [&](const Contact& c) { out.push_back(c); });
   return out;
+}
+
+void Simulator::body_contact_forces(int copy, double* forces) const {
+  std::fill(forces, forces + 3 * model_->nbody, 0.0);
+  visit_contacts(copy, [&](const Contact& c) {
+    for (int i = 0; i < 3; ++i) {
+      if (c.body_b >= 0) forces[3 * c.body_b + i] += c.force[i];
+      if (c.body_a >= 0) forces[3 * c.body_a + i] -= c.force[i];
+    }
+  });
 }
 
 Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::body_contact_wrenches(int copy) const {
   Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, model_->nbody);
-  for (const Contact& c : contacts(copy)) {
+  visit_contacts(copy, [&](const Contact& c) {
     const Eigen::Vector3d torque = c.point.cross(c.force) + c.torsion * c.normal;
     if (c.body_b >= 0) out.col(c.body_b) += (Eigen::Matrix<double, 6, 1>() << c.force, torque).finished();
     if (c.body_a >= 0) out.col(c.body_a) -= (Eigen::Matrix<double, 6, 1>() << c.force, torque).finished();
-  }
+  });
   return out;
 }
 

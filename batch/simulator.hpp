@@ -102,6 +102,16 @@ struct CopySnapshot {
   Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, parameters;
 };
 
+// CPU seconds per phase of the steps taken while profiling
+// (Simulator::set_profiling), summed over threads.
+struct StepProfile {
+  double dynamics = 0;           // kinematics, joint effects, ABA (all RK4 stages; the trapezoid's second pass)
+  double contact_detection = 0;  // shape poses, narrowphase, slot compaction
+  double constraint_solve = 0;   // rows, Delassus blocks, PGS/TGS, impulses applied
+  double integration = 0;        // positions, applied torques, fault checks, state written back
+  double total() const { return dynamics + contact_detection + constraint_solve + integration; }
+};
+
 // Contacts dropped for want of capacity.
 struct ContactOverflow {
   int dropped = 0;         // in the last step
@@ -125,6 +135,11 @@ class Simulator {
 
   // Advances every copy by options().dt (n times).
   void step(int n = 1);
+
+  // Profiling: per-phase CPU time of the following steps (a clock read per
+  // phase and block: a few ns per env-step); turning it on clears the sums.
+  void set_profiling(bool on);
+  StepProfile profile() const;
 
   // The stages the pipeline runs for this scene, each with the reason.
   const std::vector<StageDecision>& plan() const { return plan_; }
@@ -179,6 +194,8 @@ class Simulator {
   void set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction);
   std::vector<Contact> contacts(int copy) const;
   Eigen::Matrix<double, 6, Eigen::Dynamic> body_contact_wrenches(int copy) const;
+  // The force part of body_contact_wrenches into forces[3 nbody]; allocates nothing.
+  void body_contact_forces(int copy, double* forces) const;
   ContactOverflow contact_overflow(int copy) const;
   // Mechanical energy (kinetic + gravity potential) of one copy, in double,
   // with the copy's inertial parameters and gravity.
@@ -207,6 +224,9 @@ class Simulator {
   Eigen::VectorXd checked_configuration(const Eigen::VectorXd& q, const char* what) const;
   template <class F>
   decltype(auto) visit(F&& f) const;
+  // f(const Contact&) for each contact of the copy's last step.
+  template <class F>
+  void visit_contacts(int copy, F&& f) const;
 
   const Model* model_;
   StepOptions options_;

@@ -178,9 +178,26 @@ void StepEngine<L>::step(int substeps, double dt) {
   const T h = static_cast<T>(dt / substeps);
   tbb::parallel_for(tbb::blocked_range<int>(0, batch_.state.q.blocks()), [&](const tbb::blocked_range<int>& range) {
     Scratch& s = scratch_->local();
+    s.clock.on = profiling_;
     for (int b = range.begin(); b != range.end(); ++b)
       for (int k = 0; k < substeps; ++k) step_block(b, h, s);
   });
+}
+
+template <class L>
+void StepEngine<L>::set_profiling(bool on) {
+  for (Scratch& s : *scratch_) s.clock = PhaseClock{on, {}, {}};
+  profiling_ = on;
+}
+
+template <class L>
+StepProfile StepEngine<L>::profile() const {
+  StepProfile sum;
+  for (const Scratch& s : *scratch_)
+    for (double StepProfile::*phase : {&StepProfile::dynamics, &StepProfile::contact_detection,
+                                       &StepProfile::constraint_solve, &StepProfile::integration})
+      sum.*phase += s.clock.seconds.*phase;
+  return sum;
 }
 
 template <class L>
@@ -210,6 +227,7 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   T* q = B.state.q.block(block);
   T* v = B.state.v.block(block);
   const T* tau_ff = B.state.tau.block(block);
+  s.clock.start();
 
   // Inputs that are not finite fault their copy; when several are, the
   // torque is named before the targets, the wrench and gravity.
@@ -235,6 +253,7 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   T* q_next = fields(s.q_next);
   if (options_.integrator == Integrator::RK4) {
     rk4_block(in, tau_ff, terms_in, q, h, q_next, s);
+    s.clock.lap(&StepProfile::dynamics);
   } else {
     free_acceleration(q, v, h, in, tau_ff, terms_in, s);
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(h), s.qacc[k], s.u0[k]);
@@ -245,11 +264,13 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
     const bool contacts = !contact_pairs_.empty();
     // rows see the step's q: the trapezoid's predictor moved the joint transforms
     if (trapezoid && (contacts || !row_specs_.empty())) joint_transforms<L>(km_, q, s.ws);
+    s.clock.lap(&StepProfile::dynamics);
     s.contacts.slots = 0;
     if (contacts) {
       world_transforms<L>(km_, s.ws);
       detect_contacts<L>(km_, contact_pairs_, contact_params_, fields(s.u1), h, s.ws, contact_arrays(block),
                          s.contacts);
+      s.clock.lap(&StepProfile::contact_detection);
     }
     if (!row_specs_.empty() || s.contacts.slots > 0) solve_rows(block, q, h, s);
     else if (tgs)
@@ -257,6 +278,7 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
     if (contacts)
       store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
                         contact_arrays(block));
+    s.clock.lap(&StepProfile::constraint_solve);
     // positions: TGS by its substep displacement; otherwise by the
     // integrator's velocity: semi-implicit Euler v1; trapezoid (v0 + v1)/2,
     // except in copies whose rows act this step, which move with v1 so that
@@ -303,6 +325,7 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
     for (int i = 0; i < nq; ++i) lane::store(lane::load<L>(q_next + i * W), q + i * W);
     for (int k = 0; k < nv; ++k) lane::store(s.u1[k], v + k * W);
   }
+  s.clock.lap(&StepProfile::integration);
 }
 
 // The trapezoidal rule's velocity, explicit (Heun): the acceleration a1 at

@@ -13,6 +13,8 @@
 
 #include <tbb/enumerable_thread_specific.h>
 
+#include <chrono>
+
 namespace lockstep {
 
 // What the pipeline runs, decided once per scene by the Simulator.
@@ -25,6 +27,9 @@ struct StepPlan {
 
 struct Simulator::Engine {
   virtual ~Engine() = default;
+  // Per-phase CPU time of the steps taken while profiling, summed over threads.
+  virtual void set_profiling(bool on) = 0;
+  virtual StepProfile profile() const = 0;
   virtual void step(int substeps, double dt) = 0;
   // The non-row stages may change between steps (drive gains, wrenches).
   virtual void set_plan(const StepPlan& plan) = 0;
@@ -45,6 +50,8 @@ class StepEngine final : public Simulator::Engine {
 
   void step(int substeps, double dt) override;
   void set_plan(const StepPlan& plan) override;
+  void set_profiling(bool on) override;
+  StepProfile profile() const override;
   int copies() const override { return batch_.copies(); }
   int rows() const override { return static_cast<int>(row_specs_.size()); }
   std::size_t bytes_per_copy() const override { return batch_.bytes_per_copy(); }
@@ -53,8 +60,27 @@ class StepEngine final : public Simulator::Engine {
   const StepBatch<T>& batch() const { return batch_; }
 
  private:
+  // A worker's time per phase of the step, when profiling: lap(p) adds the
+  // time since the previous lap to phase p (one clock read per phase and
+  // block, nothing without profiling).
+  struct PhaseClock {
+    bool on = false;
+    std::chrono::steady_clock::time_point last;
+    StepProfile seconds;
+    void start() {
+      if (on) last = std::chrono::steady_clock::now();
+    }
+    void lap(double StepProfile::*phase) {
+      if (!on) return;
+      const auto now = std::chrono::steady_clock::now();
+      seconds.*phase += std::chrono::duration<double>(now - last).count();
+      last = now;
+    }
+  };
+
   // Scratch of one worker for one block at a time; never per copy.
   struct Scratch {
+    PhaseClock clock;
     Workspace<L> ws;
     JointTermScratch<L> terms;
     JointRowScratch<L> rows;  // joint rows first, then contact rows
@@ -96,6 +122,7 @@ class StepEngine final : public Simulator::Engine {
   ContactParams<T> contact_params_;
   StepBatch<T> batch_;
   std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
+  bool profiling_ = false;
 };
 
 }  // namespace lockstep

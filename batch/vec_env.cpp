@@ -213,26 +213,29 @@ void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
   const Model& m = model();
   visit_batch([&](auto& b) {
     using T = std::decay_t<decltype(b.state.q.at(0, 0))>;
+    const int W = b.state.q.width();
     tbb::parallel_for(tbb::blocked_range<int>(0, copies(), 256), [&](const tbb::blocked_range<int>& range) {
       for (int c = range.begin(); c < range.end(); ++c) {
         if (options_.action_mode == ActionMode::Torque) {
-          for (int a = 0; a < action_size(); ++a) b.state.tau.at(c, action_dofs_[a]) = static_cast<T>(actions(c, a));
+          T* tau = b.state.tau.lane(c);
+          for (int a = 0; a < action_size(); ++a) tau[action_dofs_[a] * W] = static_cast<T>(actions(c, a));
           continue;
         }
+        T* target = b.target_q.lane(c);
         for (int a = 0; a < action_size();) {
           const int body = m.dof_body[action_dofs_[a]], qo = m.body_q_offset[body];
           if (m.body_joint[body] != JointType::Spherical) {
-            b.target_q.at(c, qo) = static_cast<T>(actions(c, a));
+            target[qo * W] = static_cast<T>(actions(c, a));
             ++a;
             continue;
           }
           // a rotation vector r: the target exp(r) (a non-finite r faults the copy)
           const Eigen::Vector3d rotation(actions(c, a), actions(c, a + 1), actions(c, a + 2));
           const double angle = rotation.norm();
-          const Eigen::Quaterniond target =
+          const Eigen::Quaterniond turn =
               angle > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, rotation / angle)) : Eigen::Quaterniond::Identity();
-          const double wxyz[4] = {target.w(), target.x(), target.y(), target.z()};
-          for (int i = 0; i < 4; ++i) b.target_q.at(c, qo + i) = static_cast<T>(std::isfinite(angle) ? wxyz[i] : angle);
+          const double wxyz[4] = {turn.w(), turn.x(), turn.y(), turn.z()};
+          for (int i = 0; i < 4; ++i) target[(qo + i) * W] = static_cast<T>(std::isfinite(angle) ? wxyz[i] : angle);
           a += 3;
         }
       }
@@ -257,9 +260,11 @@ void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
     if (reward_out_.size() != copies() || static_cast<int>(terminated_.size()) != copies())
       throw std::logic_error("VecEnv::step: the reward function resized its outputs");
   }
+  visit_batch([&](const auto& b) {
+    for (int c = 0; c < copies(); ++c) last_fault_[c] = static_cast<Fault>(static_cast<int>(b.fault.at(c, 0)));
+  });
   std::vector<int> ended;
   for (int c = 0; c < copies(); ++c) {
-    last_fault_[c] = sim_.fault(c);
     faulted_[c] = last_fault_[c] != Fault::None;
     if (faulted_[c]) terminated_[c] = 1, reward_out_[c] = 0;
     ++episode_step_[c];
@@ -288,53 +293,74 @@ void VecEnv::copy_rows(const std::vector<int>& rows, const Observations& from, O
     for (int c : rows) target[f]->row(c) = source[f]->row(c);
 }
 
-// One copy's observation row from the batch (T: the precision).
+namespace {
+
+// Rows [first, first + lanes) of `out` from one block's fields [field][lane]
+// (the batch's layout, width W), columns [0, fields).
+template <class T>
+void transpose_block(const T* block, int fields, int W, int first, int lanes, RowMatrix& out) {
+  for (int k = 0; k < fields; ++k)
+    for (int l = 0; l < lanes; ++l) out(first + l, k) = block[k * W + l];
+}
+
+}  // namespace
+
+// The observation rows of one block's copies: the state fields transposed
+// from the batch, then the base, gravity and contact forces copy by copy.
 template <class Batch>
-void VecEnv::observe_copy(const Batch& b, int c, Observations& o) const {
+void VecEnv::observe_block(const Batch& b, int block, Observations& o) const {
   const Model& m = model();
-  for (int i = 0; i < m.nq; ++i) o.q(c, i) = b.state.q.at(c, i);
-  for (int k = 0; k < m.nv; ++k) {
-    o.qd(c, k) = b.state.v.at(c, k);
-    o.applied_torque(c, k) = double(b.applied_drive.at(c, k)) + double(b.applied_passive.at(c, k)) +
-                             double(b.applied_friction.at(c, k)) + double(b.applied_limits.at(c, k));
-  }
-  Eigen::Vector3d position, linear_base = Eigen::Vector3d::Zero(), angular_base = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond orientation;
-  if (m.body_joint[0] == JointType::Free) {
-    position = o.q.row(c).segment<3>(0).transpose();
-    orientation = Eigen::Quaterniond(o.q(c, 3), o.q(c, 4), o.q(c, 5), o.q(c, 6));
-    linear_base = o.qd.row(c).segment<3>(0).transpose();
-    angular_base = o.qd.row(c).segment<3>(3).transpose();
-  } else {
-    const Eigen::Isometry3d& root = fixed_base_pose_;
-    position = root.translation();
-    orientation = Eigen::Quaterniond(root.linear());
-  }
-  const Eigen::Matrix3d R = orientation.normalized().toRotationMatrix();  // a float quaternion is unit to ~1e-7
-  o.base_position.row(c) = position.transpose();
-  o.base_orientation.row(c) << orientation.w(), orientation.x(), orientation.y(), orientation.z();
-  o.base_linear_velocity_base.row(c) = linear_base.transpose();
-  o.base_angular_velocity_base.row(c) = angular_base.transpose();
-  o.base_linear_velocity_world.row(c) = (R * linear_base).transpose();
-  o.base_angular_velocity_world.row(c) = (R * angular_base).transpose();
-  const Eigen::Vector3d g(b.state.gravity.at(c, 0), b.state.gravity.at(c, 1), b.state.gravity.at(c, 2));
-  const double norm = g.norm();
-  const Eigen::Vector3d down = norm > 0 ? Eigen::Vector3d(R.transpose() * g / norm) : Eigen::Vector3d::Zero();
-  o.projected_gravity.row(c) = down.transpose();
-  if (o.contact_force.cols() > 0) {
-    const Eigen::Matrix<double, 6, Eigen::Dynamic> wrenches = sim_.body_contact_wrenches(c);
-    for (int body = 0; body < m.nbody; ++body) o.contact_force.row(c).segment<3>(3 * body) = wrenches.col(body).head<3>();
+  const int W = b.state.q.width(), first = block * W, lanes = std::min(W, copies() - first);
+  transpose_block(b.state.q.block(block), m.nq, W, first, lanes, o.q);
+  transpose_block(b.state.v.block(block), m.nv, W, first, lanes, o.qd);
+  // the applied torque: the sum of its four sources, in double
+  const auto *drive = b.applied_drive.block(block), *passive = b.applied_passive.block(block);
+  const auto *friction = b.applied_friction.block(block), *limits = b.applied_limits.block(block);
+  for (int k = 0; k < m.nv; ++k)
+    for (int l = 0; l < lanes; ++l) {
+      const int i = k * W + l;
+      o.applied_torque(first + l, k) = double(drive[i]) + double(passive[i]) + double(friction[i]) + double(limits[i]);
+    }
+  const auto* gravity = b.state.gravity.block(block);
+  for (int l = 0; l < lanes; ++l) {
+    const int c = first + l;
+    Eigen::Vector3d position, linear_base = Eigen::Vector3d::Zero(), angular_base = Eigen::Vector3d::Zero();
+    Eigen::Quaterniond orientation;
+    if (m.body_joint[0] == JointType::Free) {
+      position = o.q.row(c).segment<3>(0).transpose();
+      orientation = Eigen::Quaterniond(o.q(c, 3), o.q(c, 4), o.q(c, 5), o.q(c, 6));
+      linear_base = o.qd.row(c).segment<3>(0).transpose();
+      angular_base = o.qd.row(c).segment<3>(3).transpose();
+    } else {
+      position = fixed_base_pose_.translation();
+      orientation = Eigen::Quaterniond(fixed_base_pose_.linear());
+    }
+    const Eigen::Matrix3d R = orientation.normalized().toRotationMatrix();  // a float quaternion is unit to ~1e-7
+    o.base_position.row(c) = position.transpose();
+    o.base_orientation.row(c) << orientation.w(), orientation.x(), orientation.y(), orientation.z();
+    o.base_linear_velocity_base.row(c) = linear_base.transpose();
+    o.base_angular_velocity_base.row(c) = angular_base.transpose();
+    o.base_linear_velocity_world.row(c) = (R * linear_base).transpose();
+    o.base_angular_velocity_world.row(c) = (R * angular_base).transpose();
+    const Eigen::Vector3d g(gravity[l], gravity[W + l], gravity[2 * W + l]);
+    const double norm = g.norm();
+    const Eigen::Vector3d down = norm > 0 ? Eigen::Vector3d(R.transpose() * g / norm) : Eigen::Vector3d::Zero();
+    o.projected_gravity.row(c) = down.transpose();
+    if (o.contact_force.cols() > 0) sim_.body_contact_forces(c, o.contact_force.row(c).data());
   }
 }
 
 void VecEnv::observe(const std::vector<int>* which, Observations& o) const {
   visit_batch([&](const auto& b) {
-    if (which) {
-      for (int c : *which) observe_copy(b, c, o);
+    const int W = b.state.q.width();
+    if (which) {  // the blocks holding these copies (the others' rows are refreshed unchanged)
+      int last = -1;
+      for (int c : *which)
+        if (c / W != last) observe_block(b, last = c / W, o);
       return;
     }
-    tbb::parallel_for(tbb::blocked_range<int>(0, copies(), 64), [&](const tbb::blocked_range<int>& range) {
-      for (int c = range.begin(); c < range.end(); ++c) observe_copy(b, c, o);
+    tbb::parallel_for(tbb::blocked_range<int>(0, b.state.q.blocks()), [&](const tbb::blocked_range<int>& range) {
+      for (int block = range.begin(); block < range.end(); ++block) observe_block(b, block, o);
     });
   });
 }

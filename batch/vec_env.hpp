@@ -147,7 +147,7 @@ class VecEnv {
   // Observation rows of `copies` (all when null) from the simulator.
   void observe(const std::vector<int>* copies, Observations& out) const;
   template <class Batch>
-  void observe_copy(const Batch& batch, int copy, Observations& out) const;
+  void observe_block(const Batch& batch, int block, Observations& out) const;
   static void copy_rows(const std::vector<int>& rows, const Observations& from, Observations& to);
   // f(sim_.batch<T>()) for the chosen precision T.
   template <class F>

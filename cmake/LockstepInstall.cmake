@@ -17,16 +17,22 @@ install(TARGETS lockstep lockstep_flags lockstep_cpu_check
   OBJECTS DESTINATION ${CMAKE_INSTALL_LIBDIR}/lockstep/objects)
 install(TARGETS lockstep_tool RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 
+# io/rollout_hdf5.hpp is internal to the library (it includes hdf5.h).
 foreach(_dir layout kernels batch io)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${_dir}/
     DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/lockstep/${_dir}
-    FILES_MATCHING PATTERN "*.hpp")
+    FILES_MATCHING PATTERN "*.hpp" PATTERN "rollout_hdf5.hpp" EXCLUDE)
 endforeach()
 install(FILES ${PROJECT_SOURCE_DIR}/tools/cpu_check.hpp DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/lockstep/tools)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/models/ DESTINATION ${LOCKSTEP_INSTALL_MODELSDIR})
 
 install(EXPORT lockstepTargets NAMESPACE lockstep:: DESTINATION ${LOCKSTEP_INSTALL_CMAKEDIR})
 string(REPLACE ";" " " LOCKSTEP_PUBLIC_FLAGS_TEXT "${LOCKSTEP_PUBLIC_FLAGS}")
+# The HDF5 library the static lockstep links, named in lockstepConfig.cmake.
+get_target_property(LOCKSTEP_HDF5_LIBRARY hdf5::hdf5 IMPORTED_LOCATION)
+if(NOT LOCKSTEP_HDF5_LIBRARY)
+  message(FATAL_ERROR "FindHDF5 gave hdf5::hdf5 no IMPORTED_LOCATION: cannot name it in lockstepConfig.cmake")
+endif()
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/lockstepConfig.cmake.in
   ${PROJECT_BINARY_DIR}/lockstepConfig.cmake
   INSTALL_DESTINATION ${LOCKSTEP_INSTALL_CMAKEDIR}

@@ -51,6 +51,10 @@ class BatchArray {
 
   T& at(int copy, int k) { return data_[index(copy, k)]; }
   const T& at(int copy, int k) const { return data_[index(copy, k)]; }
+  // One copy's values with stride width(): element k at lane(copy)[k * width()]
+  // (for loops over many elements of a copy, without at()'s division).
+  T* lane(int copy) { return data_.get() + index(copy, 0); }
+  const T* lane(int copy) const { return data_.get() + index(copy, 0); }
 
   // One copy's values as a double vector, and back.
   Eigen::VectorXd get(int copy) const {

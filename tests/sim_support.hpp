@@ -58,6 +58,23 @@ inline Model spinner(double inertia, double lower = -Model::kInfinity, double up
   return builder.finalize();
 }
 
+// One 1 kg link on a Spherical joint through its COM (no gravity torque),
+// principal inertia (0.02, 0.03, 0.04) kg m^2.
+inline Model ball_joint() {
+  ArticulationSpec spec;
+  spec.name = "ball";
+  LinkSpec base;
+  base.name = "base";
+  spec.links.push_back(base);
+  LinkSpec link = joint_link("arm", "base", JointType::Spherical, Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero());
+  link.inertial.mass = 1.0;
+  link.inertial.inertia = Eigen::Vector3d(0.02, 0.03, 0.04).asDiagonal();
+  spec.links.push_back(link);
+  ModelBuilder builder;
+  builder.add_articulation(spec);
+  return builder.finalize();
+}
+
 // A free box of the given half sizes and mass.
 inline Model free_box(const Eigen::Vector3d& half, double mass) {
   ArticulationSpec spec;

@@ -234,18 +234,7 @@ TEST(Simulator, AccelerationDriveIgnoresInertia) {
 // A drive on a spherical joint turns it to the target orientation: RaiSim's
 // error is the rotation vector of q^-1 q_target.
 TEST(Simulator, SphericalDriveReachesTargetOrientation) {
-  ArticulationSpec spec;
-  spec.name = "ball";
-  LinkSpec base;
-  base.name = "base";
-  spec.links.push_back(base);
-  LinkSpec link = test::joint_link("arm", "base", JointType::Spherical, Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero());
-  link.inertial.mass = 1.0;
-  link.inertial.inertia = Eigen::Vector3d(0.02, 0.03, 0.04).asDiagonal();
-  spec.links.push_back(link);
-  ModelBuilder builder;
-  builder.add_articulation(spec);
-  const Model model = builder.finalize();
+  const Model model = test::ball_joint();
   std::vector<DofSettings> dofs = default_dof_settings(model);
   for (DofSettings& d : dofs) d.drive_stiffness = 20.0, d.drive_damping = 2.0;
   Simulator sim(model, 1, double_options(0.005), dofs);

@@ -314,6 +314,38 @@ TEST(VecEnv, TorqueAndPositionTargetActionsReachTheSimulator) {
   }
 }
 
+// A Spherical joint's three actions are a rotation vector: its drive
+// target is exp(r), and the drive takes the joint there.
+TEST(VecEnv, ASphericalJointTakesARotationVectorAsItsTarget) {
+  const Model model = test::ball_joint();
+  VecEnvOptions options;
+  options.step.precision = Precision::Double;
+  options.dofs = default_dof_settings(model);
+  for (DofSettings& d : options.dofs) d.drive_stiffness = 20, d.drive_damping = 2;
+  options.action_mode = ActionMode::PositionTarget;
+  VecEnv env(model, 2, options);
+  ASSERT_EQ(env.action_size(), 3);
+  env.reset();
+  const Eigen::Vector3d r(0.3, -0.2, 0.5);
+  RowMatrix actions(2, 3);
+  actions.row(0) = r.transpose();
+  actions.row(1).setZero();
+  for (int t = 0; t < 1500; ++t) env.step(actions);  // 3 s, the drive's time constant ~0.1 s
+  const Eigen::Quaterniond target(Eigen::AngleAxisd(r.norm(), r.normalized()));
+  const Eigen::VectorXd stored = env.simulator().batch<double>().target_q.get(0);
+  EXPECT_NEAR(stored[0], target.w(), 1e-15);
+  EXPECT_NEAR(stored[1], target.x(), 1e-15);
+  EXPECT_NEAR(stored[2], target.y(), 1e-15);
+  EXPECT_NEAR(stored[3], target.z(), 1e-15);
+  const Eigen::RowVectorXd q = env.observations().q.row(0);
+  const Eigen::Quaterniond reached(q[0], q[1], q[2], q[3]);
+  EXPECT_LT(reached.angularDistance(target), 1e-6);  // no gravity torque on a ball at its COM
+  EXPECT_LT(Eigen::Quaterniond(env.observations().q(1, 0), env.observations().q(1, 1), env.observations().q(1, 2),
+                               env.observations().q(1, 3))
+                .angularDistance(Eigen::Quaterniond::Identity()),
+            1e-9);
+}
+
 // Per-copy armature and damping act as the model's and DofSettings' do.
 TEST(VecEnv, PerCopyArmatureAndDampingMatchTheModelsOwn) {
   Model with = test::rod_chain({1.0, 0.5}, 0.4);

@@ -2,9 +2,9 @@
 // second per core and ns per env-step, for each precision and thread count;
 // MuJoCo on the same URDF beside it when the build found MuJoCo
 // (docs/cli.md, docs/performance.md).
-#include "io/urdf_import.hpp"
-#include "tools/cli.hpp"
+#include "batch/build_info.hpp"
 #include "io/json.hpp"
+#include "tools/cli.hpp"
 #include "tools/step_scene.hpp"
 #ifdef LOCKSTEP_HAVE_MUJOCO
 #include "tools/mujoco_peer.hpp"
@@ -34,17 +34,18 @@ namespace {
 namespace fs = std::filesystem;
 
 struct BenchConfig {
-  std::string urdf;
+  std::string model;  // a URDF or a scene file
+  bool default_model = false;  // none given: anymal_b with a floating base
   int copies = 4096;
   std::vector<int> threads{1, 2};
   std::vector<Precision> precisions{Precision::Float, Precision::Double};
   int steps = 200;
   int repeats = 5;
-  double dt = 0.002;
+  std::optional<double> dt;  // overrides the scene's
   long mujoco_steps = 20000;
   bool mujoco = true;
   bool json = false;
-  bool ground = false;  // a ground plane: the robot stands on it
+  bool floating_base = false, ground = false, no_contacts = false;
 };
 
 // One timed configuration: `copies` environments advanced `steps` steps in
@@ -69,6 +70,7 @@ struct PrecisionResult {
   double max_pose_error = 0.0;
   double mean_height = 0.0;    // of the floating root over all copies at the end
   double mean_contacts = 0.0;  // contact points pushing, per copy, at the end
+  StepProfile profile;         // CPU time per phase of one profiled run
 };
 
 // The CPU's model name as Linux reports it, and its hardware threads.
@@ -90,24 +92,6 @@ std::string default_model() {
   return (fs::path(bundled_models_dir()) / "quadruped.urdf").string();
 }
 
-double parse_number(const std::string& option, const std::string& text) {
-  std::size_t used = 0;
-  double x = 0.0;
-  try {
-    x = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != text.size() || !std::isfinite(x)) throw UsageError(option + " expects a number, not \"" + text + "\"");
-  return x;
-}
-
-long parse_count(const std::string& option, const std::string& text) {
-  const double x = parse_number(option, text);
-  if (x < 1 || x != std::floor(x) || x > 1e9) throw UsageError(option + " expects a whole number >= 1, not \"" + text + "\"");
-  return static_cast<long>(x);
-}
-
 std::vector<std::string> split(const std::string& list) {
   std::vector<std::string> items;
   std::stringstream in(list);
@@ -116,19 +100,20 @@ std::vector<std::string> split(const std::string& list) {
 }
 
 BenchConfig parse_config(const std::vector<std::string>& args) {
-  const ParsedArgs parsed = parse_args(args, {"--no-mujoco", "--json", "--ground"},
-                                       {"--copies", "--threads", "--precision", "--steps", "--repeats", "--dt",
-                                        "--mujoco-steps"});
-  if (parsed.positional.size() > 1) throw UsageError("bench takes at most one MODEL.urdf");
+  const ParsedArgs parsed =
+      parse_args(args, {"--no-mujoco", "--json", "--floating-base", "--ground", "--no-contacts"},
+                 {"--envs", "--threads", "--precision", "--steps", "--repeats", "--dt", "--mujoco-steps"});
+  if (parsed.positional.size() > 1) throw UsageError("bench takes at most one MODEL.urdf or SCENE.json");
   BenchConfig config;
-  config.urdf = parsed.positional.empty() ? default_model() : parsed.positional[0];
-  if (const std::string* v = parsed.value("--copies")) config.copies = static_cast<int>(parse_count("--copies", *v));
+  config.default_model = parsed.positional.empty();
+  config.model = config.default_model ? default_model() : parsed.positional[0];
+  if (const std::string* v = parsed.value("--envs")) config.copies = static_cast<int>(parse_count("--envs", *v));
   if (const std::string* v = parsed.value("--steps")) config.steps = static_cast<int>(parse_count("--steps", *v));
   if (const std::string* v = parsed.value("--repeats")) config.repeats = static_cast<int>(parse_count("--repeats", *v));
   if (const std::string* v = parsed.value("--mujoco-steps")) config.mujoco_steps = parse_count("--mujoco-steps", *v);
   if (const std::string* v = parsed.value("--dt")) {
     config.dt = parse_number("--dt", *v);
-    if (config.dt <= 0) throw UsageError("--dt must be positive, not \"" + *v + "\"");
+    if (*config.dt <= 0) throw UsageError("--dt must be positive, not \"" + *v + "\"");
   }
   if (const std::string* v = parsed.value("--threads")) {
     config.threads.clear();
@@ -145,7 +130,9 @@ BenchConfig parse_config(const std::vector<std::string>& args) {
   if (config.threads.empty() || config.precisions.empty())
     throw UsageError("--threads and --precision need at least one entry");
   config.mujoco = !parsed.has("--no-mujoco");
+  config.floating_base = config.default_model || parsed.has("--floating-base");
   config.ground = parsed.has("--ground");
+  config.no_contacts = parsed.has("--no-contacts");
   config.json = parsed.has("--json");
   return config;
 }
@@ -168,28 +155,46 @@ double pose_error(const Model& model, const Simulator& sim, const Eigen::VectorX
 }
 
 // Times the step for one precision at every thread count: a warm-up, then
-// `repeats` runs of `steps` steps, each from the initial state.
-PrecisionResult time_lockstep(const Model& model, const step_scene::Scene& scene, const BenchConfig& config,
-                              Precision precision, std::vector<Row>& rows, std::string& plan) {
-  StepOptions options;
-  options.dt = config.dt;
+// `repeats` runs of `steps` steps, each from the initial state; then one
+// profiled run on the first thread count for the time split by phase. Every
+// copy holds the scene's initial pose with its drives.
+PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Precision precision,
+                              std::vector<Row>& rows, std::string& plan) {
+  const Model& model = scene.model;
+  StepOptions options = scene.env.step;
   options.precision = precision;
-  options.contacts.ground = config.ground;
-  Simulator sim = step_scene::make_simulator(model, scene, config.copies, options);
+  Simulator sim(model, config.copies, options, scene.env.dofs);
+  const Eigen::VectorXd& q0 = scene.env.initial_q;
+  const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
+  for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, q0, v0);
+  sim.set_state_all(q0, v0);
   if (plan.empty()) plan = sim.describe_plan();
   for (int threads : config.threads) {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
     sim.step(config.steps);
     std::vector<double> seconds;
     for (int r = 0; r < config.repeats; ++r) {
-      sim.set_state_all(scene.q0, scene.v0);
+      sim.set_state_all(q0, v0);
       const auto start = std::chrono::steady_clock::now();
       sim.step(config.steps);
       seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     }
     rows.push_back({"lockstep", precision_name(precision), threads, config.copies, config.steps, median(seconds)});
   }
-  PrecisionResult result{precision, sim.bytes_per_copy(), sim.fault_count(), pose_error(model, sim, scene.q_target)};
+  PrecisionResult result;
+  result.precision = precision;
+  result.bytes_per_copy = sim.bytes_per_copy();
+  result.faults = sim.fault_count();
+  result.max_pose_error = pose_error(model, sim, q0);
+  {
+    tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism,
+                                    static_cast<std::size_t>(config.threads.front()));
+    sim.set_state_all(q0, v0);
+    sim.set_profiling(true);
+    sim.step(config.steps);
+    result.profile = sim.profile();
+    sim.set_profiling(false);
+  }
   for (int c = 0; c < sim.copies(); ++c) {
     result.mean_height += sim.q(c)[2] / sim.copies();
     for (const Contact& contact : sim.contacts(c)) result.mean_contacts += contact.force.norm() > 0 ? 1.0 / sim.copies() : 0.0;
@@ -214,8 +219,10 @@ std::string fixed(double x, int digits) {
 struct BenchReport {
   BenchConfig config;
   std::string model_name;
+  std::string model_path;  // the URDF (a scene file's model)
   std::string machine;
-  bool floating_base = false;
+  bool floating_base = false, contacts = false;
+  double dt = 0.0;
   int nv = 0, driven_dofs = 0;
   std::vector<Row> rows;
   std::vector<PrecisionResult> precisions;
@@ -258,11 +265,11 @@ std::vector<Comparison> mujoco_ratios(const BenchReport& report) {
 
 void print_text(const BenchReport& r, std::ostream& out) {
   const BenchConfig& c = r.config;
-  out << "lockstep bench: " << c.urdf << (r.floating_base ? " (floating base)" : " (fixed base)") << "\n"
-      << "scene: " << (r.config.ground ? "standing on a ground plane (contacts on)" : "no contacts") << ", gravity on, PD drives (kp " << step_scene::kDriveStiffness << " N m/rad, kd "
-      << step_scene::kDriveDamping << " N m s/rad) on " << r.driven_dofs << " of " << r.nv
-      << " DOFs holding a standing pose, dt " << c.dt << " s\n"
+  out << "lockstep bench: " << c.model << (r.floating_base ? " (floating base)" : " (fixed base)") << "\n"
+      << "scene: " << (r.contacts ? "contacts on" : "no contacts") << ", gravity on, PD drives on " << r.driven_dofs
+      << " of " << r.nv << " DOFs holding the initial pose, dt " << r.dt << " s\n"
       << "machine: " << r.machine << "\n"
+      << "build: " << build_description() << "\n"
       << "timing: median of " << c.repeats << " repeats of " << c.steps << " steps of " << c.copies
       << " copies";
   if (c.mujoco) out << " (MuJoCo: " << c.mujoco_steps << " steps of one mjData per thread)";
@@ -313,6 +320,16 @@ void print_text(const BenchReport& r, std::ostream& out) {
     if (r.mujoco_status.empty())
       out << " MuJoCo " << fixed(r.mujoco_height, 4) << " m, " << fixed(r.mujoco_contacts, 2);
   }
+  out << "\ntime by phase (one profiled run, " << c.threads.front() << (c.threads.front() == 1 ? " thread" : " threads")
+      << "):";
+  for (const PrecisionResult& p : r.precisions) {
+    const StepProfile& t = p.profile;
+    const double total = t.total() > 0 ? t.total() : 1.0;
+    out << "\n  " << precision_name(p.precision) << ": dynamics " << fixed(100 * t.dynamics / total, 1)
+        << " %, contact detection " << fixed(100 * t.contact_detection / total, 1) << " %, constraint solve "
+        << fixed(100 * t.constraint_solve / total, 1) << " %, integration " << fixed(100 * t.integration / total, 1)
+        << " %";
+  }
   out << "\nfaulted copies:";
   for (const PrecisionResult& p : r.precisions) out << " " << precision_name(p.precision) << " " << p.faults;
   out << "\n\nstage plan:\n" << r.plan;
@@ -329,10 +346,11 @@ std::string comparisons_json(const std::vector<Comparison>& list) {
 
 void print_json(const BenchReport& r, std::ostream& out) {
   const BenchConfig& c = r.config;
-  out << "{\n  \"model\": " << json::quote(c.urdf) << ",\n  \"floating_base\": " << (r.floating_base ? "true" : "false")
-      << ",\n  \"machine\": " << json::quote(r.machine)
+  out << "{\n  \"model\": " << json::quote(c.model) << ",\n  \"floating_base\": " << (r.floating_base ? "true" : "false")
+      << ",\n  \"contacts\": " << (r.contacts ? "true" : "false")
+      << ",\n  \"machine\": " << json::quote(r.machine) << ",\n  \"build\": " << json::quote(build_description())
       << ",\n  \"copies\": " << c.copies << ",\n  \"steps\": " << c.steps << ",\n  \"repeats\": " << c.repeats
-      << ",\n  \"dt\": " << json::number(c.dt) << ",\n  \"driven_dofs\": " << r.driven_dofs << ",\n  \"rows\": [";
+      << ",\n  \"dt\": " << json::number(r.dt) << ",\n  \"driven_dofs\": " << r.driven_dofs << ",\n  \"rows\": [";
   for (std::size_t i = 0; i < r.rows.size(); ++i) {
     const Row& row = r.rows[i];
     out << (i ? "," : "") << "\n    {\"engine\": " << json::quote(row.engine) << ", \"precision\": "
@@ -357,9 +375,36 @@ void print_json(const BenchReport& r, std::ostream& out) {
     const PrecisionResult& p = r.precisions[i];
     out << (i ? ", " : "") << "{\"precision\": " << json::quote(precision_name(p.precision))
         << ", \"bytes_per_copy\": " << p.bytes_per_copy << ", \"faults\": " << p.faults
-        << ", \"max_pose_error\": " << json::number(p.max_pose_error) << "}";
+        << ", \"max_pose_error\": " << json::number(p.max_pose_error) << ", \"phase_seconds\": {\"dynamics\": "
+        << json::number(p.profile.dynamics) << ", \"contact_detection\": " << json::number(p.profile.contact_detection)
+        << ", \"constraint_solve\": " << json::number(p.profile.constraint_solve)
+        << ", \"integration\": " << json::number(p.profile.integration) << "}}";
   }
   out << "],\n  \"plan\": " << json::quote(r.plan) << "\n}\n";
+}
+
+// MuJoCo's peer of the scene: one kp and kd for every drive, so a scene
+// whose gains differ between joints has none.
+std::optional<std::string> mujoco_difference(const Scene& scene) {
+  std::optional<std::pair<double, double>> gains;
+  for (int k = 0; k < scene.model.nv; ++k) {
+    if (scene.model.body_joint[scene.model.dof_body[k]] == JointType::Free) continue;
+    const DofSettings& d = scene.env.dofs[k];
+    if (!gains) gains = {d.drive_stiffness, d.drive_damping};
+    if (gains->first != d.drive_stiffness || gains->second != d.drive_damping)
+      return "the scene's drive gains differ between joints; the MuJoCo peer takes one kp and kd";
+  }
+  return std::nullopt;
+}
+
+// Drive targets by joint name: the scene's initial pose of each 1-DOF joint.
+std::vector<std::pair<std::string, double>> joint_targets(const Scene& scene) {
+  const Model& m = scene.model;
+  std::vector<std::pair<std::string, double>> targets;
+  for (int b = 0; b < m.nbody; ++b)
+    if (m.body_joint[b] == JointType::Revolute || m.body_joint[b] == JointType::Prismatic)
+      targets.emplace_back(m.joint_name[b], scene.env.initial_q[m.body_q_offset[b]]);
+  return targets;
 }
 
 }  // namespace
@@ -368,30 +413,42 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
   BenchReport report;
   report.config = parse_config(args);
   const BenchConfig& config = report.config;
-  const LoadedModel loaded = load_model(config.urdf, true, false);
-  const Model& model = loaded.model;
-  report.model_name = fs::path(config.urdf).stem().string();
+  Scene scene = load_cli_scene(config.model, config.floating_base, config.ground, config.no_contacts);
+  if (config.dt) scene.env.step.dt = *config.dt;
+  const Model& model = scene.model;
+  report.model_name = fs::path(scene.model_path).stem().string();
+  report.model_path = scene.model_path;
   report.machine = machine_description();
-  report.floating_base = loaded.floating_base;
+  report.floating_base = scene.floating_base;
+  report.dt = scene.env.step.dt;
   report.nv = model.nv;
-  const step_scene::Scene scene = step_scene::make_scene(model, config.ground);
-  report.driven_dofs = scene.driven_dofs;
+  for (int k = 0; k < model.nv; ++k) report.driven_dofs += scene.env.dofs[k].drive_stiffness > 0;
 
   for (Precision precision : config.precisions)
-    report.precisions.push_back(time_lockstep(model, scene, config, precision, report.rows, report.plan));
+    report.precisions.push_back(time_lockstep(scene, config, precision, report.rows, report.plan));
+  {
+    const Simulator probe(model, 1, scene.env.step, scene.env.dofs);
+    report.contacts = probe.plan()[static_cast<int>(Stage::Contacts)].runs;
+  }
 
+  const std::optional<std::string> unlike = mujoco_difference(scene);
   if (!config.mujoco) {
     report.mujoco_status = "not run (--no-mujoco)";
+  } else if (unlike) {
+    report.mujoco_status = "not run: " + *unlike;
   } else {
 #ifdef LOCKSTEP_HAVE_MUJOCO
     MujocoScene peer;
-    peer.urdf_path = config.urdf;
-    peer.dt = config.dt;
-    peer.kp = step_scene::kDriveStiffness;
-    peer.kd = step_scene::kDriveDamping;
-    peer.targets = step_scene::standing_pose(model);
-    peer.base_height = config.ground && loaded.floating_base ? scene.q0[2] : step_scene::kBaseHeight;
-    peer.ground = config.ground;
+    peer.urdf_path = scene.model_path;
+    peer.floating_base = scene.floating_base;
+    peer.dt = scene.env.step.dt;
+    const int first = model.nbody > 0 && model.body_joint[0] == JointType::Free ? 6 : 0;
+    peer.kp = first < model.nv ? scene.env.dofs[first].drive_stiffness : 0.0;
+    peer.kd = first < model.nv ? scene.env.dofs[first].drive_damping : 0.0;
+    peer.targets = joint_targets(scene);
+    peer.base_height = scene.floating_base ? scene.env.initial_q[2] : step_scene::kBaseHeight;
+    peer.ground = report.contacts && scene.env.step.contacts.ground;
+    peer.friction = scene.env.step.contacts.ground_contact.friction;
     try {
       const MujocoReport mujoco = run_mujoco_peer(peer, config.threads, config.mujoco_steps, config.repeats);
       for (const MujocoTiming& t : mujoco.timings)

@@ -2,6 +2,8 @@
 // Output formats and exit codes: docs/cli.md.
 #pragma once
 
+#include "batch/precision.hpp"
+#include "io/scene_file.hpp"
 #include "layout/model.hpp"
 
 #include <iosfwd>
@@ -16,7 +18,8 @@ namespace lockstep::cli {
 // tools/cpu_check.hpp before main runs).
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitInternal = 1;  // a bug or an unexpected failure
-inline constexpr int kExitBadInput = 2;  // bad arguments, model or state file
+inline constexpr int kExitBadInput = 2;  // bad arguments, model, state or scene file
+inline constexpr int kExitOutput = 4;    // the output file cannot be written (path, permissions, full disk)
 
 // Bad command-line arguments; main prints the message and exits kExitBadInput.
 class UsageError : public std::runtime_error {
@@ -44,6 +47,11 @@ struct ParsedArgs {
 ParsedArgs parse_args(const std::vector<std::string>& args, const std::vector<std::string>& flags,
                       const std::vector<std::string>& options);
 
+// Option values; a UsageError names the option and the text.
+double parse_number(const std::string& option, const std::string& text);  // finite
+long parse_count(const std::string& option, const std::string& text, long minimum = 1, double maximum = 1e9);
+Precision parse_precision(const std::string& text);  // float or double
+
 // Loads a URDF; errors (missing file, invalid model, a warning under
 // `strict`) propagate as exceptions naming the file.
 LoadedModel load_model(const std::string& path, bool floating_base, bool strict);
@@ -56,10 +64,22 @@ void print_info_json(const LoadedModel& loaded, std::ostream& out);
 // `lockstep dynamics MODEL.urdf --state STATE.json [--floating-base] [--precision float|double]`
 int run_dynamics(const std::vector<std::string>& args, std::ostream& out);
 
-// `lockstep bench [MODEL.urdf] [--copies N] [--threads LIST] [--precision LIST]
-// [--steps S] [--repeats R] [--dt DT] [--mujoco-steps M] [--no-mujoco] [--json]`:
-// env-steps per second of the simulation step (and of MuJoCo when built with it).
+// `lockstep bench [MODEL.urdf|SCENE.json] [--envs N] [--threads LIST] [--precision LIST]
+// [--steps S] [--repeats R] [--dt DT] [--mujoco-steps M] [--no-mujoco] [--floating-base]
+// [--ground] [--no-contacts] [--json]`: env-steps per second of the simulation step,
+// its time by phase (and MuJoCo's speed when built with it).
 int run_bench(const std::vector<std::string>& args, std::ostream& out);
+
+// `lockstep rollout MODEL.urdf|SCENE.json --out FILE.h5 [--envs N] [--steps T]
+// [--policy zero|hold|sine|random] [--threads K] [--precision float|double] [--seed S]
+// [--episode-steps E] [--floating-base] [--ground] [--no-contacts] [--compression L]
+// [--flush-seconds S]`: a rollout file of N copies under a built-in policy.
+int run_rollout(const std::vector<std::string>& args, std::ostream& out);
+
+// The scene the CLI runs: a scene file, or a bare URDF standing under
+// position-target drives as `lockstep bench` poses it (tools/step_scene.hpp);
+// --ground adds the plane, --no-contacts turns contacts off.
+Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, bool no_contacts);
 
 // `lockstep demo`: info and dynamics on the bundled model.
 int run_demo(const std::vector<std::string>& args, std::ostream& out);

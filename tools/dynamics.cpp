@@ -33,11 +33,8 @@ int run_dynamics(const std::vector<std::string>& args, std::ostream& out) {
   if (parsed.positional.size() != 1) throw UsageError("dynamics needs exactly one MODEL.urdf");
   const std::string* state_path = parsed.value("--state");
   if (!state_path) throw UsageError("dynamics needs --state STATE.json");
-  Precision precision = Precision::Double;
-  if (const std::string* p = parsed.value("--precision")) {
-    if (*p == "float") precision = Precision::Float;
-    else if (*p != "double") throw UsageError("--precision must be float or double, not \"" + *p + "\"");
-  }
+  const std::string* precision_option = parsed.value("--precision");
+  const Precision precision = precision_option ? parse_precision(*precision_option) : Precision::Double;
 
   const LoadedModel loaded = load_model(parsed.positional[0], parsed.has("--floating-base"), false);
   const Model& model = loaded.model;

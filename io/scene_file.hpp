@@ -1,0 +1,70 @@
+// Scene files: a JSON description of what `lockstep rollout`, `lockstep
+// bench` and the vectorised environment run (the model, fixed or floating
+// base, initial state, ground and static boxes, contact settings, drive
+// gains, step options, environment options and randomisation ranges), read
+// into a ready-to-run Scene. The format: docs/scenes.md.
+//
+//   lockstep::Scene scene = lockstep::load_scene("models/quadruped_scene.json");
+//   lockstep::VecEnv env(scene.model, 4096, scene.env);
+#pragma once
+
+#include "batch/vec_env.hpp"
+#include "layout/model.hpp"
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace lockstep {
+
+// Any invalid scene input: a syntax error ("FILE:LINE:COLUMN: what"), a model
+// that does not load, or a key that is unknown, of the wrong type, out of
+// range or not finite ("FILE: key.path: what is wrong").
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct Scene {
+  std::string source;      // the scene file, or the URDF for a bare model
+  std::string model_path;  // the URDF (a scene file's relative path resolved against its folder)
+  bool floating_base = false;
+  Model model;
+  std::vector<std::string> warnings;  // from the URDF import
+  // Step options with contacts; dofs: default_dof_settings(model) with the
+  // file's drives and joint dynamics, one per DOF; the environment options,
+  // randomisation and initial state (empty: the neutral configuration at
+  // rest).
+  VecEnvOptions env;
+};
+
+// Reads a .json scene file. Throws SceneError.
+Scene load_scene(const std::string& path);
+
+// A bare URDF with the defaults: no ground unless `ground` (then the plane
+// z = 0 with the default surface), contacts among the model's shapes as the
+// default ContactSettings give them, no drives beyond the URDF's settings,
+// the initial state neutral at rest. Throws SceneError.
+Scene scene_from_urdf(const std::string& urdf_path, bool floating_base, bool ground);
+
+// A scene file when `path` ends in ".json", else a bare URDF. For a scene
+// file, `floating_base` and `ground` override the file only when true: the
+// model is loaded with a floating base, and a scene without a ground gets
+// the default plane (a ground the file describes is kept as it is).
+Scene load_scene_or_urdf(const std::string& path, bool floating_base, bool ground);
+
+// Contacts off entirely (`--no-contacts`): Stage::Contacts forced Off.
+void disable_contacts(Scene& scene);
+
+// The scene as scene-file JSON that load_scene reads back to the same
+// options, bit for bit (every value written explicitly, the model path
+// absolute), e.g. to record in a rollout exactly what ran. Throws
+// std::invalid_argument for a Scene the format cannot express (a DofSettings
+// field other than the drive gains, max_force, drive type, damping and
+// friction changed from the model's defaults; a stage other than contacts
+// forced; the DOFs of one joint, or the shapes of one link, set
+// differently). Quaternions of the initial state read back normalised
+// (read_state), which may move them by an ulp.
+std::string scene_to_json(const Scene& scene);
+
+}  // namespace lockstep

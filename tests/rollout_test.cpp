@@ -1,0 +1,230 @@
+// Rollouts end to end: a vectorised environment recorded to a rollout file,
+// read back, replayed bit for bit from the stored scene, initial state and
+// actions; the same file whatever the thread count; `lockstep rollout`
+// killed with SIGKILL leaves a readable, finite, incomplete file.
+#include "io/rollout_recorder.hpp"
+#include "io/scene_file.hpp"
+#include "io/sha256.hpp"
+#include "tools/rollout_policy.hpp"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <tbb/global_control.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+namespace lockstep {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(Sha256, MatchesTheStandardsExamples) {
+  EXPECT_EQ(sha256_hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  EXPECT_EQ(sha256_hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  // two blocks (FIPS 180-4 example, 448 bits)
+  EXPECT_EQ(sha256_hex("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq"),
+            "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+}
+
+// A temporary folder removed at the end of the test.
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() / ("lockstep_rollout_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+std::string bundled_scene() { return std::string(LOCKSTEP_MODELS_DIR) + "/quadruped_scene.json"; }
+
+// What a recorded run saw, per step, for comparison with the file.
+struct Seen {
+  std::vector<Eigen::VectorXd> q;  // all copies' q after the step, terminal rows where the episode ended
+  std::vector<RowMatrix> actions;
+};
+
+// The bundled quadruped scene with short episodes (auto-resets inside the
+// run), random actions, recorded to `file`.
+Seen record(const Scene& scene, int envs, int steps, const std::string& file, int threads = 2) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  VecEnv env(scene.model, envs, scene.env);
+  env.reset();
+  RolloutRecorder recorder(env, file, {scene_to_json(scene), scene.model_path, "random", {}});
+  const cli::Policy policy(cli::PolicyKind::Random, env, scene.env.seed);
+  Seen seen;
+  RowMatrix actions;
+  for (int t = 0; t < steps; ++t) {
+    policy.act(env, t, actions);
+    env.step(actions);
+    recorder.record(actions);
+    RowMatrix q = env.observations().q;
+    for (int c = 0; c < envs; ++c)
+      if (env.terminated()[c] || env.truncated()[c]) q.row(c) = env.terminal_observations().q.row(c);
+    seen.q.push_back(Eigen::Map<const Eigen::VectorXd>(q.data(), q.size()));
+    seen.actions.push_back(actions);
+  }
+  recorder.close();
+  return seen;
+}
+
+Scene short_episode_scene() {
+  Scene scene = load_scene(bundled_scene());
+  scene.env.episode_steps = 7;
+  scene.env.seed = 5;
+  return scene;
+}
+
+TEST(Rollout, TheFileHoldsWhatTheEnvironmentDidWithItsSchema) {
+  const TempDir dir;
+  const std::string file = (dir.path / "run.h5").string();
+  const Scene scene = short_episode_scene();
+  const int envs = 6, steps = 16;
+  const Seen seen = record(scene, envs, steps, file);
+
+  const RolloutReader r(file);
+  EXPECT_TRUE(r.complete());
+  ASSERT_EQ(r.steps(), steps);
+  const Model& m = scene.model;
+  const std::size_t n = envs, T = steps;
+  EXPECT_EQ(r.shape("q"), (std::vector<std::size_t>{T, n, std::size_t(m.nq)}));
+  EXPECT_EQ(r.shape("qd"), (std::vector<std::size_t>{T, n, std::size_t(m.nv)}));
+  EXPECT_EQ(r.shape("actions"), (std::vector<std::size_t>{T, n, std::size_t(m.nv - 6)}));
+  EXPECT_EQ(r.shape("applied_torque"), (std::vector<std::size_t>{T, n, std::size_t(m.nv)}));
+  EXPECT_EQ(r.shape("contact_force"), (std::vector<std::size_t>{T, n, std::size_t(m.nbody), 3}));
+  for (const char* flag : {"reward", "terminated", "truncated", "faulted"})
+    EXPECT_EQ(r.shape(flag), (std::vector<std::size_t>{T, n})) << flag;
+  EXPECT_EQ(r.shape("initial_q"), (std::vector<std::size_t>{n, std::size_t(m.nq)}));
+  EXPECT_EQ(r.type("q"), ElementType::Float32);  // the scene's precision
+  EXPECT_EQ(r.type("actions"), ElementType::Float64);
+  EXPECT_EQ(r.type("terminated"), ElementType::UInt8);
+
+  EXPECT_EQ(std::get<std::string>(r.attribute("model_sha256")), sha256_file(scene.model_path));
+  EXPECT_EQ(std::get<std::string>(r.attribute("model_file")), scene.model_path);
+  EXPECT_EQ(std::get<std::vector<std::string>>(r.attribute("dof_names")), m.dof_name);
+  EXPECT_EQ(std::get<double>(r.attribute("dt")), scene.env.step.dt);
+  EXPECT_EQ(std::get<std::int64_t>(r.attribute("seed")), 5);
+  EXPECT_EQ(std::get<std::int64_t>(r.attribute("control_steps")), scene.env.control_steps);
+  EXPECT_EQ(std::get<std::string>(r.attribute("precision")), "float");
+  EXPECT_EQ(std::get<std::string>(r.attribute("policy")), "random");
+  EXPECT_EQ(std::get<std::vector<double>>(r.attribute("randomization.mass_scale")),
+            (std::vector<double>{scene.env.randomization.mass_scale.low, scene.env.randomization.mass_scale.high}));
+  EXPECT_FALSE(std::get<std::string>(r.attribute("lockstep_version")).empty());
+  EXPECT_EQ(std::get<std::int64_t>(r.attribute("steps")), steps);
+
+  const std::vector<float> q = r.read_as<float>("q");
+  const std::vector<double> actions = r.read_as<double>("actions");
+  const std::vector<std::uint8_t> truncated = r.read_as<std::uint8_t>("truncated");
+  int ended = 0;
+  for (int t = 0; t < steps; ++t) {
+    for (Eigen::Index i = 0; i < seen.q[t].size(); ++i)
+      ASSERT_EQ(q[t * seen.q[t].size() + i], static_cast<float>(seen.q[t][i])) << "step " << t;
+    for (Eigen::Index i = 0; i < seen.actions[t].size(); ++i)
+      ASSERT_EQ(actions[t * seen.actions[t].size() + i], seen.actions[t].data()[i]);
+    for (int c = 0; c < envs; ++c) ended += truncated[t * envs + c];
+  }
+  EXPECT_EQ(ended, envs * (steps / 7));  // episodes of 7 steps: two auto-resets each
+}
+
+// The file's scene, initial state and actions reproduce every stored step.
+TEST(Rollout, ReplayingTheStoredSceneAndActionsReproducesTheFileBitForBit) {
+  const TempDir dir;
+  const std::string file = (dir.path / "run.h5").string();
+  const int envs = 5, steps = 15;
+  record(short_episode_scene(), envs, steps, file);
+
+  const RolloutReader r(file);
+  const std::string scene_path = (dir.path / "replay.json").string();
+  std::ofstream(scene_path) << std::get<std::string>(r.attribute("scene"));
+  const Scene scene = load_scene(scene_path);
+  VecEnv env(scene.model, envs, scene.env);
+  env.reset();
+  const std::vector<float> initial_q = r.read_as<float>("initial_q"), initial_qd = r.read_as<float>("initial_qd");
+  const Model& m = scene.model;
+  for (int c = 0; c < envs; ++c) {
+    Eigen::VectorXd q(m.nq), v(m.nv);
+    for (int i = 0; i < m.nq; ++i) q[i] = initial_q[c * m.nq + i];
+    for (int k = 0; k < m.nv; ++k) v[k] = initial_qd[c * m.nv + k];
+    ASSERT_EQ(q, env.observations().q.row(c).transpose()) << "the stored initial state is the reset's";
+    env.simulator().set_state(c, q, v);
+  }
+  const std::vector<double> actions = r.read_as<double>("actions");
+  const std::vector<float> q = r.read_as<float>("q"), qd = r.read_as<float>("qd");
+  const std::vector<double> reward = r.read_as<double>("reward");
+  const int na = env.action_size();
+  for (int t = 0; t < steps; ++t) {
+    const RowMatrix a = Eigen::Map<const RowMatrix>(actions.data() + t * envs * na, envs, na);
+    env.step(a);
+    for (int c = 0; c < envs; ++c) {
+      const bool ended = env.terminated()[c] || env.truncated()[c];
+      const Observations& o = ended ? env.terminal_observations() : env.observations();
+      for (int i = 0; i < m.nq; ++i)
+        ASSERT_EQ(static_cast<float>(o.q(c, i)), q[(t * envs + c) * m.nq + i]) << "step " << t << " copy " << c;
+      for (int k = 0; k < m.nv; ++k) ASSERT_EQ(static_cast<float>(o.qd(c, k)), qd[(t * envs + c) * m.nv + k]);
+      ASSERT_EQ(env.reward()[c], reward[t * envs + c]);
+    }
+  }
+}
+
+TEST(Rollout, FilesDoNotDependOnTheThreadCount) {
+  const TempDir dir;
+  const std::string one = (dir.path / "one.h5").string(), two = (dir.path / "two.h5").string();
+  record(short_episode_scene(), 40, 10, one, 1);
+  record(short_episode_scene(), 40, 10, two, 2);
+  const RolloutReader a(one), b(two);
+  for (const char* name : {"initial_q", "q", "qd", "applied_torque", "contact_force"})
+    EXPECT_EQ(a.read_as<float>(name), b.read_as<float>(name)) << name;
+  for (const char* name : {"truncated", "terminated", "faulted"})
+    EXPECT_EQ(a.read_as<std::uint8_t>(name), b.read_as<std::uint8_t>(name)) << name;
+}
+
+// `lockstep rollout` killed with SIGKILL mid-run: the file opens, holds
+// every step it flushed, all finite, and does not claim to be complete.
+TEST(Rollout, AKilledRolloutLeavesAReadableIncompleteFile) {
+  const TempDir dir;
+  const std::string file = (dir.path / "killed.h5").string();
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::execl(LOCKSTEP_TOOL_PATH, "lockstep", "rollout", bundled_scene().c_str(), "--envs", "64", "--steps", "1000000",
+            "--flush-seconds", "0.05", "--threads", "1", "--out", file.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Wait for flushed steps, then kill without warning.
+  std::int64_t seen = 0;
+  for (int tries = 0; tries < 400 && seen < 20; ++tries) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (!fs::exists(file)) continue;
+    try {
+      seen = RolloutReader(file).steps();
+    } catch (const RolloutFileError&) {
+      // not yet a whole file header: try again
+    }
+  }
+  ::kill(child, SIGKILL);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the rollout ended by itself (status " << status << ")";
+  ASSERT_GE(seen, 20) << "the rollout never flushed 20 steps";
+
+  const RolloutReader r(file);
+  EXPECT_FALSE(r.complete());
+  EXPECT_GE(r.steps(), seen);
+  for (const std::string& name : r.datasets()) {
+    const std::vector<double> values = r.read(name);
+    for (double x : values) ASSERT_TRUE(std::isfinite(x)) << name;
+  }
+  EXPECT_FALSE(r.has_attribute("steps"));  // the summary of a finished run
+}
+
+}  // namespace
+}  // namespace lockstep
