@@ -9,6 +9,7 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <iomanip>
@@ -138,26 +139,32 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   RowMatrix actions;
   Progress progress(config.steps, config.envs);
   double stepping = 0;
+  std::int64_t faults_seen = 0, episodes_ended = 0;
   const auto start = Clock::now();
   for (std::int64_t t = 0; t < config.steps; ++t) {
     policy.act(env, t, actions);
     const auto before = Clock::now();
     env.step(actions);
     stepping += std::chrono::duration<double>(Clock::now() - before).count();
+    faults_seen += std::count(env.faulted().begin(), env.faulted().end(), 1);
+    for (int c = 0; c < env.copies(); ++c) episodes_ended += env.terminated()[c] || env.truncated()[c];
     recorder.record(actions);
     progress.update(t + 1, std::chrono::duration<double>(Clock::now() - start).count());
   }
   const double wall = std::chrono::duration<double>(Clock::now() - start).count();
   const double env_steps = static_cast<double>(config.envs) * static_cast<double>(config.steps);
-  recorder.close({{"wall_seconds", wall},
+  recorder.close({{"faulted_env_steps", faults_seen},
+                  {"episodes_ended", episodes_ended},
+                  {"wall_seconds", wall},
                   {"stepping_seconds", stepping},
                   {"recording_seconds", recorder.seconds_recording()},
                   {"waiting_seconds", recorder.seconds_waiting()},
                   {"env_steps_per_s", env_steps / wall}});
   out << std::fixed << std::setprecision(2) << "wrote " << config.out << ": " << config.envs << " envs x "
-      << config.steps << " steps in " << wall << " s, " << std::setprecision(3) << env_steps / wall / 1e6
-      << " M env-steps/s (" << threads << " threads, " << precision_name(scene.env.step.precision)
-      << "); recording " << std::setprecision(1) << 100.0 * recorder.seconds_recording() / stepping
+      << config.steps << " steps (" << scene.env.control_steps << " simulator steps each) in " << wall << " s, "
+      << std::setprecision(3) << env_steps / wall / 1e6 << " M env-steps/s (" << threads << " threads, "
+      << precision_name(scene.env.step.precision) << "), " << faults_seen << " faulted env-steps, " << episodes_ended
+      << " episodes ended; recording " << std::setprecision(1) << 100.0 * recorder.seconds_recording() / stepping
       << " % of the stepping time, of which waiting for the disk " << 100.0 * recorder.seconds_waiting() / stepping
       << " %\n";
   return kExitOk;
