@@ -3,6 +3,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+
 namespace lockstep {
 
 namespace {
@@ -29,7 +31,8 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
     : ws(km), terms(km.nv), rows(joint_rows + contact.capacity * contact.rows_per_contact, columns, km.nv),
       contacts(contact.capacity, contact.rows_per_contact, km.nv, km.nbody, candidates), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
-      v_sum(km.nv), a_sum(km.nv) {}
+      v_sum(km.nv), a_sum(km.nv), lambda_start(joint_rows + contact.capacity * contact.rows_per_contact),
+      lambda_partial(lambda_start.size()) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -84,6 +87,9 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
       add_row(JointRowKind::Friction, k, d.friction, 0);
   }
   batch_.impulse = BatchArray<T>(copies, static_cast<int>(row_specs_.size()), kWidth);
+  contacts_first_ = options.solver == SolverType::PGS &&
+                    std::none_of(row_specs_.begin(), row_specs_.end(),
+                                 [](const JointRowSpec<T>& r) { return r.kind == JointRowKind::Friction; });
   if (options.record_applied_torque)
     for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
       *a = BatchArray<T>(copies, nv, kWidth);
@@ -420,6 +426,8 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
       contact_delassus<L>(km_, contact_params_, reinterpret_cast<const T*>(s.ws.matrix.data()), row_specs_, rs.sigma,
                           h, mj, contacts, rows);
     if (tgs) tgs_solve(rows, options_.iterations, h);
+    else if (contacts_first_ && mc > 0 && mj > 0)
+      pgs_solve_slack_first(rows, options_.iterations, mj, s.lambda_start, s.lambda_partial);
     else pgs_solve(rows, options_.iterations);
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
     add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());

@@ -91,6 +91,7 @@ class StepEngine final : public Simulator::Engine {
     std::vector<L> q_next;          // (nq) the step's new positions
     std::vector<L> q_stage, v_stage;  // RK4 stage state
     std::vector<L> v_sum, a_sum;      // RK4 weighted sums
+    std::vector<L> lambda_start, lambda_partial;  // (rows) pgs_solve_slack_first's scratch
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
 
@@ -123,6 +124,10 @@ class StepEngine final : public Simulator::Engine {
   StepBatch<T> batch_;
   std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
   bool profiling_ = false;
+  // PGS solves the contact rows first, the joint rows held slack
+  // (pgs_solve_slack_first); not with joint friction rows, which act
+  // whenever a joint moves.
+  bool contacts_first_ = false;
 };
 
 }  // namespace lockstep

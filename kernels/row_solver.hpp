@@ -100,29 +100,43 @@ inline lane::mask_t<L> rows_at_rest(const RowBlock<L>& rows) {
   return rest;
 }
 
-// Row r's velocity from the current impulses.
+// Row r's velocity from the impulses of rows [first, m) (those before
+// `first` are zero when a solve leaves them out).
 template <class L>
-inline L row_velocity(const RowBlock<L>& rows, int r) {
+inline L row_velocity(const RowBlock<L>& rows, int r, int first = 0) {
   const L* Dr = &rows.D[r * rows.m];
   L v = rows.v_free[r];
-  for (int c = 0; c < rows.m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
+  for (int c = first; c < rows.m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
   return v;
 }
 
-// One Gauss-Seidel sweep over the rows; v_r recomputed from the impulses.
+// Per lane: true where rows [0, count) need no impulse at the current
+// impulses of the others (their velocity in band, as row_at_rest asks of
+// v_free): then zero is their part of the solution.
+template <class L>
+inline lane::mask_t<L> rows_slack(const RowBlock<L>& rows, int count) {
+  lane::mask_t<L> slack(true);
+  for (int r = 0; r < count; ++r)
+    slack = slack && row_at_rest(row_velocity(rows, r), rows.target[r], rows.target_hi[r], rows.lo[r], rows.hi[r],
+                                 rows.error[r], rows.positional[r] != 0);
+  return slack;
+}
+
+// One Gauss-Seidel sweep over rows [first, m); v_r recomputed from their
+// impulses.
 // A cone pair is updated together: each row's unclamped step at the pair's
 // current velocities, then the pair projected radially onto the disc of
 // radius mu lambda_bound (Coulomb's isotropic cone, not a pyramid).
 template <class L>
-inline void gauss_seidel_sweep(RowBlock<L>& rows) {
+inline void gauss_seidel_sweep(RowBlock<L>& rows, int first = 0) {
   using T = lane::scalar_t<L>;
   const int m = rows.m;
-  for (int r = 0; r < m; ++r) {
+  for (int r = first; r < m; ++r) {
     const L inv_d = L(T(1)) / rows.D[r * m + r];
     if (rows.cone[r]) {
       const L inv_d2 = L(T(1)) / rows.D[(r + 1) * m + r + 1];
-      const L a = rows.lambda[r] - row_velocity(rows, r) * inv_d;
-      const L b = rows.lambda[r + 1] - row_velocity(rows, r + 1) * inv_d2;
+      const L a = rows.lambda[r] - row_velocity(rows, r, first) * inv_d;
+      const L b = rows.lambda[r + 1] - row_velocity(rows, r + 1, first) * inv_d2;
       const L radius = rows.mu[r] * rows.lambda[rows.bound_row[r]];
       const L length = lane::sqrt(a * a + b * b);
       const L scale = lane::select(length > radius, radius / lane::max(length, L(std::numeric_limits<T>::min())), L(T(1)));
@@ -131,7 +145,7 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows) {
       ++r;
       continue;
     }
-    const L v = row_velocity(rows, r);
+    const L v = row_velocity(rows, r, first);
     L lo = rows.lo[r], hi = rows.hi[r];
     if (rows.bound_row[r] >= 0) {
       hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
@@ -141,9 +155,36 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows) {
   }
 }
 
+// PGS on rows [first, m), the rows before them held at zero impulse.
 template <class L>
-void pgs_solve(RowBlock<L>& rows, int iterations) {
-  for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(rows);
+void pgs_solve(RowBlock<L>& rows, int iterations, int first = 0) {
+  for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(rows, first);
+}
+
+// PGS in two phases, each lane's result its own: rows [first, m) alone,
+// rows [0, first) held at zero impulse; a lane where those then need an
+// impulse (rows_slack) takes the solve of all rows from the same start
+// instead, run for the block only when some lane needs it. Where they stay
+// slack, zero impulse satisfies them, so the first phase's result solves the
+// whole problem (to the iterations' tolerance). The step puts the joint rows
+// first: a standing robot's limits are slack nearly always, and every sweep
+// then skips their share of D. `start` and `partial`: scratch of m rows.
+template <class L>
+void pgs_solve_slack_first(RowBlock<L>& rows, int iterations, int first, std::vector<L>& start,
+                           std::vector<L>& partial) {
+  using T = lane::scalar_t<L>;
+  const int m = rows.m;
+  for (int r = 0; r < m; ++r) start[r] = rows.lambda[r];
+  for (int r = 0; r < first; ++r) rows.lambda[r] = L(T(0));
+  pgs_solve(rows, iterations, first);
+  const lane::mask_t<L> slack = rows_slack(rows, first);
+  if (lane::all<L>(slack)) return;
+  for (int r = 0; r < m; ++r) {
+    partial[r] = rows.lambda[r];
+    rows.lambda[r] = start[r];
+  }
+  pgs_solve(rows, iterations);
+  for (int r = 0; r < m; ++r) rows.lambda[r] = lane::select(slack, partial[r], rows.lambda[r]);
 }
 
 // TGS over `substeps` substeps of h = dt / substeps: before each sweep the

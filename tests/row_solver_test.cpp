@@ -46,6 +46,54 @@ TEST(RowSolver, RowsAtRestNeedNoImpulse) {
   EXPECT_FALSE(rows_at_rest(rows));
 }
 
+// A one-sided "joint" row 0 (lambda0 >= 0, v0 >= target0) coupled to a
+// normal row 1 (v1 >= 1) and a friction row 2 bounded by it, in lanes where
+// row 0's target is far below (slack) or above (it must push) its velocity.
+template <class L>
+RowBlock<L> joint_and_contact_problem(const std::vector<double>& joint_target) {
+  using T = lane::scalar_t<L>;
+  RowBlock<L> rows(3);
+  const double D[9] = {1.5, 0.6, -0.3, 0.6, 2.0, 0.4, -0.3, 0.4, 1.0};
+  for (int i = 0; i < 9; ++i) rows.D[i] = L(T(D[i]));
+  rows.v_free = {L(T(0.5)), L(T(-1.0)), L(T(2.0))};
+  alignas(64) T target[lane::width_v<L>];  // lane::load is an aligned load
+  std::copy(joint_target.begin(), joint_target.end(), target);
+  rows.target = {lane::load<L>(target), L(T(1.0)), L(T(0.0))};
+  rows.target_hi = {L(std::numeric_limits<T>::infinity()), L(std::numeric_limits<T>::infinity()), L(T(0.0))};
+  rows.lo = {L(T(0)), L(T(0)), L(T(-kInf))};
+  rows.hi = {L(T(kInf)), L(T(kInf)), L(T(kInf))};
+  rows.bound_row[2] = 1;
+  rows.mu[2] = L(T(0.5));
+  rows.lambda = {L(T(0.1)), L(T(0.2)), L(T(0.0))};  // a warm start
+  return rows;
+}
+
+// Lanes whose joint row stays slack take the contacts-only solve (and it
+// solves the whole problem); the others take the full solve, bit for bit
+// as pgs_solve gives it, whatever their neighbours.
+TEST(RowSolver, SlackFirstSolvesEachLaneOnItsOwn) {
+  using L = lane::simd<double>;
+  constexpr int W = static_cast<int>(lane::width_v<L>);
+  std::vector<double> targets(W);
+  for (int l = 0; l < W; ++l) targets[l] = l % 2 ? 3.0 : -50.0;  // odd lanes: row 0 must push
+  RowBlock<L> two_phase = joint_and_contact_problem<L>(targets);
+  std::vector<L> start(3), partial(3);
+  pgs_solve_slack_first(two_phase, 40, 1, start, partial);
+  for (int l = 0; l < W; ++l) {
+    RowBlock<double> full = joint_and_contact_problem<double>({targets[l]});
+    RowBlock<double> contacts_only = joint_and_contact_problem<double>({targets[l]});
+    pgs_solve(full, 40);
+    contacts_only.lambda[0] = 0;
+    pgs_solve(contacts_only, 40, 1);
+    const RowBlock<double>& expected = l % 2 ? full : contacts_only;
+    for (int r = 0; r < 3; ++r) {
+      EXPECT_EQ(two_phase.lambda[r].get(l), expected.lambda[r]) << "lane " << l << " row " << r;
+      EXPECT_NEAR(two_phase.lambda[r].get(l), full.lambda[r], 1e-9) << "lane " << l << " row " << r;
+    }
+    EXPECT_EQ(two_phase.lambda[0].get(l) > 0, l % 2 == 1) << "lane " << l;
+  }
+}
+
 // A positional row 0.05 from its limit, approaching at 10 per second over a
 // step of 0.01: TGS lets it close the gap exactly and stops there, PGS the
 // same in one sweep (the speculative target -e/dt).
