@@ -420,17 +420,29 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     build_joint_rows<L>(row_specs_, q, s.u1.data(), h, erp, rs);
     for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
     for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
-    joint_row_delassus<L>(km_, row_specs_, column_dof_, batch_.state.inertia.block(block),
-                          s.terms.implicit_diagonal.data(), s.ws, rs);
+    factor_step_mass_matrix<L>(km_, batch_.state.inertia.block(block), s.terms.implicit_diagonal.data(), s.ws);
+    // With the contacts first, the joint rows' own block of D (and their
+    // columns of Mt^-1) is needed only where some lane's limits act.
+    const bool contacts_first = contacts_first_ && !tgs && mc > 0 && mj > 0;
+    bool joint_block = !contacts_first;
+    if (joint_block) joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
     if (mc > 0)
       contact_delassus<L>(km_, contact_params_, reinterpret_cast<const T*>(s.ws.matrix.data()), row_specs_, rs.sigma,
                           h, mj, contacts, rows);
-    if (tgs) tgs_solve(rows, options_.iterations, h);
-    else if (contacts_first_ && mc > 0 && mj > 0)
-      pgs_solve_slack_first(rows, options_.iterations, mj, s.lambda_start, s.lambda_partial);
-    else pgs_solve(rows, options_.iterations);
+    if (tgs) {
+      tgs_solve(rows, options_.iterations, h);
+    } else if (contacts_first) {
+      const lane::mask_t<L> slack = pgs_slack_first_phase(rows, options_.iterations, mj, s.lambda_start);
+      if (!lane::all<L>(slack)) {
+        joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
+        joint_block = true;
+        pgs_slack_second_phase(rows, options_.iterations, slack, s.lambda_start, s.lambda_partial);
+      }
+    } else {
+      pgs_solve(rows, options_.iterations);
+    }
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
-    add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());
+    if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
     add_contact_impulses<L>(contacts, rows.lambda.data() + mj, s.u1.data());
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
     if (tgs) {

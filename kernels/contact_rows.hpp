@@ -317,7 +317,7 @@ lane::mask_t<L> contact_rows_at_rest(const RowBlock<L>& rows, int first, const C
 }
 
 // The contact rows' blocks of D = J Mt^-1 J^T, with Mt factored in H
-// (joint_row_delassus): X = Mt^-1 J^T per row, D between contact rows J X,
+// (factor_step_mass_matrix): X = Mt^-1 J^T per row, D between contact rows J X,
 // between a joint row (sigma e_dof) and a contact row sigma X[dof]. A
 // compliant normal row adds its compliance 1 / (h (k h + c)) to its
 // diagonal; an empty slot's rows, and rows with no mobility, get a unit

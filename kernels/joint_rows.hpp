@@ -113,25 +113,34 @@ void build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
   }
 }
 
-// The joint rows' block of the Delassus matrix (rows [0, specs.size()) of
-// an m x m D): Mt = CRBA + the implicit diagonal (armature and w) factored as L^T D L, left in
-// ws.matrix for further rows, one solve per distinct row DOF. Needs
-// ws.local; overwrites ws.inertia and ws.matrix.
+// Mt = CRBA + the implicit diagonal (armature and w), factored as L^T D L
+// into ws.matrix for the rows' solves. Needs ws.local; overwrites
+// ws.inertia and ws.matrix.
 template <class L>
-void joint_row_delassus(const KernelModel<lane::scalar_t<L>>& km,
-                        const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const std::vector<int>& column_dof,
-                        const lane::scalar_t<L>* inertia, const L* implicit_diagonal, Workspace<L>& ws,
-                        JointRowScratch<L>& s) {
+void factor_step_mass_matrix(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* inertia,
+                             const L* implicit_diagonal, Workspace<L>& ws) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
-  const int nv = km.nv;
   T* H = reinterpret_cast<T*>(ws.matrix.data());
   crba<L>(km, inertia, ws, H);
-  for (int k = 0; k < nv; ++k) {
-    T* Hkk = H + (k * nv + k) * W;
+  for (int k = 0; k < km.nv; ++k) {
+    T* Hkk = H + (k * km.nv + k) * W;
     lane::store(lane::load<L>(Hkk) + implicit_diagonal[k], Hkk);
   }
   ltdl_factor<L>(km, H);
+}
+
+// The joint rows' block of the Delassus matrix (rows [0, specs.size()) of
+// an m x m D), one solve with the factored Mt (factor_step_mass_matrix) per
+// distinct row DOF; the solves' columns are what add_row_impulses applies.
+template <class L>
+void joint_row_delassus(const KernelModel<lane::scalar_t<L>>& km,
+                        const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const std::vector<int>& column_dof,
+                        const Workspace<L>& ws, JointRowScratch<L>& s) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  const T* H = reinterpret_cast<const T*>(ws.matrix.data());
   for (std::size_t c = 0; c < column_dof.size(); ++c) {
     T* column = reinterpret_cast<T*>(&s.columns[c * nv]);
     for (int r = 0; r < nv; ++r) lane::store(L(T(r == column_dof[c] ? 1 : 0)), column + r * W);

@@ -110,15 +110,16 @@ inline L row_velocity(const RowBlock<L>& rows, int r, int first = 0) {
   return v;
 }
 
-// Per lane: true where rows [0, count) need no impulse at the current
-// impulses of the others (their velocity in band, as row_at_rest asks of
-// v_free): then zero is their part of the solution.
+// Per lane: true where rows [0, count), at zero impulse, need none at the
+// impulses of rows [count, m) (their velocity in band, as row_at_rest asks
+// of v_free): then zero is their part of the solution. Reads no entry of D
+// among rows [0, count).
 template <class L>
 inline lane::mask_t<L> rows_slack(const RowBlock<L>& rows, int count) {
   lane::mask_t<L> slack(true);
   for (int r = 0; r < count; ++r)
-    slack = slack && row_at_rest(row_velocity(rows, r), rows.target[r], rows.target_hi[r], rows.lo[r], rows.hi[r],
-                                 rows.error[r], rows.positional[r] != 0);
+    slack = slack && row_at_rest(row_velocity(rows, r, count), rows.target[r], rows.target_hi[r], rows.lo[r],
+                                 rows.hi[r], rows.error[r], rows.positional[r] != 0);
   return slack;
 }
 
@@ -168,23 +169,30 @@ void pgs_solve(RowBlock<L>& rows, int iterations, int first = 0) {
 // slack, zero impulse satisfies them, so the first phase's result solves the
 // whole problem (to the iterations' tolerance). The step puts the joint rows
 // first: a standing robot's limits are slack nearly always, and every sweep
-// then skips their share of D. `start` and `partial`: scratch of m rows.
+// then skips their share of D, whose block [0, first) x [0, first) the first
+// phase does not read (the step builds it only for a second phase).
+//
+// Phase one keeps the warm start in `start` (m rows) and returns the lanes
+// whose rows [0, first) stayed slack; phase two (when not all did) solves
+// all rows from `start` and keeps phase one's result in the slack lanes.
 template <class L>
-void pgs_solve_slack_first(RowBlock<L>& rows, int iterations, int first, std::vector<L>& start,
-                           std::vector<L>& partial) {
+lane::mask_t<L> pgs_slack_first_phase(RowBlock<L>& rows, int iterations, int first, std::vector<L>& start) {
   using T = lane::scalar_t<L>;
-  const int m = rows.m;
-  for (int r = 0; r < m; ++r) start[r] = rows.lambda[r];
+  for (int r = 0; r < rows.m; ++r) start[r] = rows.lambda[r];
   for (int r = 0; r < first; ++r) rows.lambda[r] = L(T(0));
   pgs_solve(rows, iterations, first);
-  const lane::mask_t<L> slack = rows_slack(rows, first);
-  if (lane::all<L>(slack)) return;
-  for (int r = 0; r < m; ++r) {
+  return rows_slack(rows, first);
+}
+
+template <class L>
+void pgs_slack_second_phase(RowBlock<L>& rows, int iterations, const lane::mask_t<L>& slack,
+                            const std::vector<L>& start, std::vector<L>& partial) {
+  for (int r = 0; r < rows.m; ++r) {
     partial[r] = rows.lambda[r];
     rows.lambda[r] = start[r];
   }
   pgs_solve(rows, iterations);
-  for (int r = 0; r < m; ++r) rows.lambda[r] = lane::select(slack, partial[r], rows.lambda[r]);
+  for (int r = 0; r < rows.m; ++r) rows.lambda[r] = lane::select(slack, partial[r], rows.lambda[r]);
 }
 
 // TGS over `substeps` substeps of h = dt / substeps: before each sweep the

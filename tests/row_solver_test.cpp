@@ -78,7 +78,10 @@ TEST(RowSolver, SlackFirstSolvesEachLaneOnItsOwn) {
   for (int l = 0; l < W; ++l) targets[l] = l % 2 ? 3.0 : -50.0;  // odd lanes: row 0 must push
   RowBlock<L> two_phase = joint_and_contact_problem<L>(targets);
   std::vector<L> start(3), partial(3);
-  pgs_solve_slack_first(two_phase, 40, 1, start, partial);
+  two_phase.D[0] = L(std::numeric_limits<double>::quiet_NaN());  // phase one reads no D among rows [0, 1)
+  const lane::mask_t<L> slack = pgs_slack_first_phase(two_phase, 40, 1, start);
+  two_phase.D[0] = L(1.5);
+  pgs_slack_second_phase(two_phase, 40, slack, start, partial);
   for (int l = 0; l < W; ++l) {
     RowBlock<double> full = joint_and_contact_problem<double>({targets[l]});
     RowBlock<double> contacts_only = joint_and_contact_problem<double>({targets[l]});
