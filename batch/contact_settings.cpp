@@ -31,6 +31,8 @@ void validate_contact_settings(const Model& model, const ContactSettings& s) {
   require(std::isfinite(s.stiffness) && s.stiffness >= 0,
           at + "stiffness must be finite and >= 0 (0: rigid), got " + number(s.stiffness));
   require(std::isfinite(s.damping) && s.damping >= 0, at + "damping must be finite and >= 0, got " + number(s.damping));
+  require(std::isfinite(s.max_depenetration_speed) && s.max_depenetration_speed > 0,
+          at + "max_depenetration_speed must be finite and > 0, got " + number(s.max_depenetration_speed));
   require(std::isfinite(s.bounce_threshold) && s.bounce_threshold >= 0,
           at + "bounce_threshold must be finite and >= 0, got " + number(s.bounce_threshold));
   require(std::isfinite(s.torsional_friction) && s.torsional_friction >= 0,

@@ -63,6 +63,10 @@ struct ContactSettings {
   double stiffness = 0.0;  // N/m
   double damping = 0.0;    // N s/m, used only with stiffness > 0
   double bounce_threshold = 0.2;   // m/s: slower impacts do not bounce
+  // m/s: a penetration is pushed out no faster than this (PhysX's
+  // maxDepenetrationVelocity), so a body started deep inside another
+  // separates instead of flying off; bounces are not capped.
+  double max_depenetration_speed = 1.0;
   double torsional_friction = 0.0; // m: torque about the normal up to this times the normal force (0: none)
 };
 

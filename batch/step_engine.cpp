@@ -88,8 +88,9 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   }
   batch_.impulse = BatchArray<T>(copies, static_cast<int>(row_specs_.size()), kWidth);
   contacts_first_ = options.solver == SolverType::PGS &&
-                    std::none_of(row_specs_.begin(), row_specs_.end(),
-                                 [](const JointRowSpec<T>& r) { return r.kind == JointRowKind::Friction; });
+                    std::none_of(row_specs_.begin(), row_specs_.end(), [](const JointRowSpec<T>& r) {
+                      return r.kind == JointRowKind::Friction && r.a > 0;  // a row of zero friction never acts
+                    });
   if (options.record_applied_torque)
     for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
       *a = BatchArray<T>(copies, nv, kWidth);
@@ -142,6 +143,7 @@ int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, 
   p.stiffness = static_cast<T>(settings.stiffness);
   p.damping = static_cast<T>(settings.damping);
   p.bounce_threshold = static_cast<T>(settings.bounce_threshold);
+  p.max_depenetration_speed = static_cast<T>(settings.max_depenetration_speed);
   p.torsional = static_cast<T>(settings.torsional_friction);
   p.error_reduction = static_cast<T>(options_.error_reduction);
   const int C = p.capacity, k = p.rows_per_contact;

@@ -125,8 +125,8 @@ class StepEngine final : public Simulator::Engine {
   std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
   bool profiling_ = false;
   // PGS solves the contact rows first, the joint rows held slack
-  // (pgs_solve_slack_first); not with joint friction rows, which act
-  // whenever a joint moves.
+  // (pgs_slack_first_phase); not with joint friction rows of nonzero
+  // friction, which act whenever a joint moves.
   bool contacts_first_ = false;
 };
 

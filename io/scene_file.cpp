@@ -408,7 +408,7 @@ std::vector<std::pair<std::string, std::string>> read_link_pairs(const json::Val
 void read_contacts(const json::Value& v, const At& at, const Model& model, StepOptions& step) {
   const Object o(v, at,
                  {"enabled", "self_collision", "capacity", "margin", "stiffness", "damping", "bounce_threshold",
-                  "torsional_friction", "links", "enabled_pairs", "disabled_pairs"});
+                  "max_depenetration_speed", "torsional_friction", "links", "enabled_pairs", "disabled_pairs"});
   ContactSettings& c = step.contacts;
   o.with("enabled", [&](const json::Value& x, const At& a) {
     if (!read_bool(x, a)) step.force(Stage::Contacts, StageMode::Off);
@@ -421,6 +421,7 @@ void read_contacts(const json::Value& v, const At& at, const Model& model, StepO
   set_number(o, "stiffness", c.stiffness, Bound::NonNegative);
   set_number(o, "damping", c.damping, Bound::NonNegative);
   set_number(o, "bounce_threshold", c.bounce_threshold, Bound::NonNegative);
+  set_number(o, "max_depenetration_speed", c.max_depenetration_speed, Bound::Positive);
   set_number(o, "torsional_friction", c.torsional_friction, Bound::NonNegative);
   o.with("links", [&](const json::Value& x, const At& a) { read_link_surfaces(x, a, model, c); });
   o.with("enabled_pairs", [&](const json::Value& x, const At& a) { c.enabled_pairs = read_link_pairs(x, a, model); });
@@ -735,6 +736,7 @@ json::Value contacts_value(const Model& model, const StepOptions& step) {
                            {"stiffness", number_value(c.stiffness)},
                            {"damping", number_value(c.damping)},
                            {"bounce_threshold", number_value(c.bounce_threshold)},
+                           {"max_depenetration_speed", number_value(c.max_depenetration_speed)},
                            {"torsional_friction", number_value(c.torsional_friction)}};
   if (!c.shapes.empty()) m.emplace_back("links", link_surfaces_value(model, c));
   if (!c.enabled_pairs.empty()) m.emplace_back("enabled_pairs", link_pairs_value(c.enabled_pairs));

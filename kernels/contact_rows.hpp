@@ -45,6 +45,7 @@ struct ContactParams {
   T margin = 0;
   T stiffness = 0, damping = 0;  // N/m, N s/m; stiffness 0: rigid
   T bounce_threshold = 0;
+  T max_depenetration_speed = 0;  // the ceiling of a normal row's target
   T torsional = 0;
   T error_reduction = 0;
 };
@@ -277,7 +278,8 @@ void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const Contact
     rows.error[r] = e;
     rows.rate[r] = rate;
     rows.floor[r] = floor;
-    rows.target[r] = rows.target_hi[r] = lane::max(positional_target(e, inv_h, rate), floor);
+    rows.ceiling[r] = L(p.max_depenetration_speed);
+    rows.target[r] = rows.target_hi[r] = lane::max(lane::min(positional_target(e, inv_h, rate), rows.ceiling[r]), floor);
     rows.lo[r] = zero;
     rows.hi[r] = lane::select(active, L(inf), zero);
     rows.positional[r] = 1;

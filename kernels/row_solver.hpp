@@ -36,6 +36,7 @@ struct RowBlock {
   std::vector<unsigned char> positional;  // (m) 1: target follows a position error (TGS re-evaluates it)
   std::vector<L> rate;         // (m) positional rows: share of a violation removed per second (erp / dt)
   std::vector<L> floor;        // (m) positional rows: lowest target (restitution's bounce velocity; -inf if none)
+  std::vector<L> ceiling;      // (m) positional rows: highest correction target (depenetration cap; +inf if none), below the floor
   std::vector<L> D;            // (m x m) Delassus matrix
   std::vector<L> v_free;       // (m) row velocity before the solve
   std::vector<L> target, target_hi, lo, hi;  // (m) velocity band and impulse box
@@ -49,6 +50,7 @@ struct RowBlock {
   explicit RowBlock(int capacity)
       : m(capacity), bound_row(capacity, -1), mu(capacity), cone(capacity, 0), positional(capacity, 0),
         rate(capacity), floor(capacity, L(-std::numeric_limits<lane::scalar_t<L>>::infinity())),
+        ceiling(capacity, L(std::numeric_limits<lane::scalar_t<L>>::infinity())),
         D(capacity * capacity), v_free(capacity), target(capacity),
         target_hi(capacity), lo(capacity), hi(capacity), error(capacity), lambda(capacity), lambda_sum(capacity),
         displacement(capacity) {}
@@ -213,8 +215,9 @@ void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt) {
   for (int k = 0; k < substeps; ++k) {
     for (int r = 0; r < m; ++r)
       if (rows.positional[r])
-        rows.target[r] = rows.target_hi[r] =
-            lane::max(positional_target(rows.error[r] + rows.displacement[r], inv_h, rows.rate[r]), rows.floor[r]);
+        rows.target[r] = rows.target_hi[r] = lane::max(
+            lane::min(positional_target(rows.error[r] + rows.displacement[r], inv_h, rows.rate[r]), rows.ceiling[r]),
+            rows.floor[r]);
     gauss_seidel_sweep(rows);
     for (int r = 0; r < m; ++r) {
       rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r), rows.displacement[r]);

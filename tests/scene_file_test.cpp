@@ -74,6 +74,7 @@ void expect_same_contacts(const ContactSettings& a, const ContactSettings& b) {
   EXPECT_BITS(a.stiffness, b.stiffness);
   EXPECT_BITS(a.damping, b.damping);
   EXPECT_BITS(a.bounce_threshold, b.bounce_threshold);
+  EXPECT_BITS(a.max_depenetration_speed, b.max_depenetration_speed);
   EXPECT_BITS(a.torsional_friction, b.torsional_friction);
 }
 
@@ -178,7 +179,7 @@ std::string full_scene(const std::string& model) {
   ],
   "contacts": {
     "enabled": true, "self_collision": true, "capacity": 24, "margin": 0.02, "stiffness": 1e5, "damping": 300,
-    "bounce_threshold": 0.3, "torsional_friction": 0.01,
+    "bounce_threshold": 0.3, "max_depenetration_speed": 0.5, "torsional_friction": 0.01,
     "links": {"FL_foot": {"friction": 1.2, "restitution": 0.05}, "base": {"layers": 6}},
     "enabled_pairs": [["FL_foot", "FR_foot"]],
     "disabled_pairs": [["base", "FL_thigh"], ["base", "HL_thigh"]]
@@ -286,6 +287,7 @@ TEST_F(SceneFile, EveryKeyLandsInItsField) {
   EXPECT_EQ(c.stiffness, 1e5);
   EXPECT_EQ(c.damping, 300);
   EXPECT_EQ(c.bounce_threshold, 0.3);
+  EXPECT_EQ(c.max_depenetration_speed, 0.5);
   EXPECT_EQ(c.torsional_friction, 0.01);
   ASSERT_EQ(c.shapes.size(), m.shapes.size());
   for (std::size_t i = 0; i < m.shapes.size(); ++i) {
