@@ -42,6 +42,8 @@ struct BenchConfig {
   int steps = 200;
   int repeats = 5;
   std::optional<double> dt;  // overrides the scene's
+  std::optional<SolverType> solver;
+  std::optional<int> iterations;
   long mujoco_steps = 20000;
   bool mujoco = true;
   bool json = false;
@@ -102,7 +104,8 @@ std::vector<std::string> split(const std::string& list) {
 BenchConfig parse_config(const std::vector<std::string>& args) {
   const ParsedArgs parsed =
       parse_args(args, {"--no-mujoco", "--json", "--floating-base", "--ground", "--no-contacts"},
-                 {"--envs", "--threads", "--precision", "--steps", "--repeats", "--dt", "--mujoco-steps"});
+                 {"--envs", "--threads", "--precision", "--steps", "--repeats", "--dt", "--mujoco-steps", "--solver",
+                  "--iterations"});
   if (parsed.positional.size() > 1) throw UsageError("bench takes at most one MODEL.urdf or SCENE.json");
   BenchConfig config;
   config.default_model = parsed.positional.empty();
@@ -111,6 +114,13 @@ BenchConfig parse_config(const std::vector<std::string>& args) {
   if (const std::string* v = parsed.value("--steps")) config.steps = static_cast<int>(parse_count("--steps", *v));
   if (const std::string* v = parsed.value("--repeats")) config.repeats = static_cast<int>(parse_count("--repeats", *v));
   if (const std::string* v = parsed.value("--mujoco-steps")) config.mujoco_steps = parse_count("--mujoco-steps", *v);
+  if (const std::string* v = parsed.value("--solver")) {
+    if (*v == "pgs") config.solver = SolverType::PGS;
+    else if (*v == "tgs") config.solver = SolverType::TGS;
+    else throw UsageError("--solver must be pgs or tgs, not \"" + *v + "\"");
+  }
+  if (const std::string* v = parsed.value("--iterations"))
+    config.iterations = static_cast<int>(parse_count("--iterations", *v));
   if (const std::string* v = parsed.value("--dt")) {
     config.dt = parse_number("--dt", *v);
     if (*config.dt <= 0) throw UsageError("--dt must be positive, not \"" + *v + "\"");
@@ -415,6 +425,8 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
   const BenchConfig& config = report.config;
   Scene scene = load_cli_scene(config.model, config.floating_base, config.ground, config.no_contacts);
   if (config.dt) scene.env.step.dt = *config.dt;
+  if (config.solver) scene.env.step.solver = *config.solver;
+  if (config.iterations) scene.env.step.iterations = *config.iterations;
   const Model& model = scene.model;
   report.model_name = fs::path(scene.model_path).stem().string();
   report.model_path = scene.model_path;

@@ -65,7 +65,8 @@ void print_info_json(const LoadedModel& loaded, std::ostream& out);
 int run_dynamics(const std::vector<std::string>& args, std::ostream& out);
 
 // `lockstep bench [MODEL.urdf|SCENE.json] [--envs N] [--threads LIST] [--precision LIST]
-// [--steps S] [--repeats R] [--dt DT] [--mujoco-steps M] [--no-mujoco] [--floating-base]
+// [--steps S] [--repeats R] [--dt DT] [--solver pgs|tgs] [--iterations N] [--mujoco-steps M]
+// [--no-mujoco] [--floating-base]
 // [--ground] [--no-contacts] [--json]`: env-steps per second of the simulation step,
 // its time by phase (and MuJoCo's speed when built with it).
 int run_bench(const std::vector<std::string>& args, std::ostream& out);
