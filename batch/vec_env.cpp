@@ -44,6 +44,10 @@ VecEnvOptions checked(const Model& model, VecEnvOptions o) {
                                               std::to_string(o.initial_q.size()));
   require(o.initial_v.size() == model.nv, "initial_v expects " + std::to_string(model.nv) + " values, got " +
                                               std::to_string(o.initial_v.size()));
+  if (o.drive_target_q.size() == 0) o.drive_target_q = o.initial_q;
+  require(o.drive_target_q.size() == model.nq, "drive_target_q expects " + std::to_string(model.nq) +
+                                                   " values, got " + std::to_string(o.drive_target_q.size()));
+  require(o.drive_target_q.allFinite(), "drive_target_q must be finite");
   if (o.dofs.empty()) o.dofs = default_dof_settings(model);
   // The torque of every source is an observation.
   o.step.record_applied_torque = true;
@@ -190,7 +194,7 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   sim_.set_state(c, q, v);  // also the copy's initial state
   sim_.reset(c);            // warm start, contact counters and fault cleared
   sim_.set_torque(c, Eigen::VectorXd::Zero(m.nv));
-  sim_.set_drive_target(c, options_.initial_q, Eigen::VectorXd::Zero(m.nv));
+  sim_.set_drive_target(c, options_.drive_target_q, Eigen::VectorXd::Zero(m.nv));
 }
 
 template <class F>

@@ -52,8 +52,12 @@ struct VecEnvOptions {
   std::uint64_t seed = 0;
   Randomization randomization;
   // The initial state before noise ((nq), (nv)); empty: the neutral
-  // configuration at rest. Also the drive targets of Torque mode.
+  // configuration at rest.
   Eigen::VectorXd initial_q, initial_v;
+  // (nq) the drives' position targets set at every reset (velocity target
+  // 0): what they hold in Torque mode; actions replace them in
+  // PositionTarget mode. Empty: initial_q.
+  Eigen::VectorXd drive_target_q;
 };
 
 // Observations, one row per copy, each field contiguous (row-major): read

@@ -291,6 +291,18 @@ void read_initial_state(const json::Value& v, const At& at, const Model& model, 
   }
 }
 
+// Drive targets: joint-name keyed like initial_state's "q".
+void read_drive_targets(const json::Value& v, const At& at, const Model& model, VecEnvOptions& env) {
+  json::Value as_state;
+  as_state.type = json::Value::Type::Object;
+  as_state.object.emplace_back("q", v);
+  try {
+    env.drive_target_q = read_state(model, as_state, at.file + ": " + at.path).q;
+  } catch (const StateError& e) {
+    throw SceneError(e.what());
+  }
+}
+
 // ---- contacts
 
 const std::vector<std::string> kSurfaceKeys = {"friction", "restitution", "layers", "collides_with"};
@@ -487,8 +499,9 @@ void read_randomization(const json::Value& v, const At& at, Randomization& r) {
 
 // ---- the whole file
 
-const std::vector<std::string> kTopKeys = {"model", "floating_base", "gravity", "initial_state", "ground", "boxes",
-                                           "contacts", "drives", "joint_dynamics", "step", "env", "randomization"};
+const std::vector<std::string> kTopKeys = {
+    "model",    "floating_base", "gravity", "initial_state", "drive_targets", "ground", "boxes",
+    "contacts", "drives",        "joint_dynamics", "step",   "env",           "randomization"};
 
 // The model path: relative paths from the scene file's folder.
 std::string resolve_model_path(const std::string& scene_path, const Object& root) {
@@ -530,6 +543,7 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
   VecEnvOptions& env = scene.env;
   root.with("gravity", [&](const json::Value& v, const At& at) { model.gravity = read_vector3(v, at); });
   root.with("initial_state", [&](const json::Value& v, const At& at) { read_initial_state(v, at, model, env); });
+  root.with("drive_targets", [&](const json::Value& v, const At& at) { read_drive_targets(v, at, model, env); });
   root.with("ground", [&](const json::Value& v, const At& at) { read_ground(v, at, env.step.contacts); });
   env.step.contacts.ground |= ground;
   root.with("boxes", [&](const json::Value& v, const At& at) { read_boxes(v, at, env.step.contacts); });
@@ -647,6 +661,14 @@ json::Value joint_entry(const Eigen::VectorXd& x, int offset, int size) {
   return size == 1 ? number_value(x[offset]) : numbers_value(x.segment(offset, size));
 }
 
+// Every joint's entry of a configuration (nq).
+json::Value configuration_value(const Model& model, const Eigen::VectorXd& q) {
+  std::vector<Member> joints;
+  for (int b = 0; b < model.nbody; ++b)
+    joints.emplace_back(model.joint_name[b], joint_entry(q, model.body_q_offset[b], joint_nq(model.body_joint[b])));
+  return object_value(std::move(joints));
+}
+
 // Every joint's entry; an empty initial_q or initial_v is the neutral
 // configuration or rest.
 json::Value initial_state_value(const Model& model, const VecEnvOptions& env) {
@@ -655,13 +677,10 @@ json::Value initial_state_value(const Model& model, const VecEnvOptions& env) {
   if (q0.size() != model.nq || v0.size() != model.nv)
     inexpressible("an initial state of " + std::to_string(q0.size()) + " + " + std::to_string(v0.size()) +
                   " values for a model with nq " + std::to_string(model.nq) + " and nv " + std::to_string(model.nv));
-  std::vector<Member> q, qd;
-  for (int b = 0; b < model.nbody; ++b) {
-    const JointType type = model.body_joint[b];
-    q.emplace_back(model.joint_name[b], joint_entry(q0, model.body_q_offset[b], joint_nq(type)));
-    qd.emplace_back(model.joint_name[b], joint_entry(v0, model.body_dof_offset[b], joint_nv(type)));
-  }
-  return object_value({{"q", object_value(std::move(q))}, {"qd", object_value(std::move(qd))}});
+  std::vector<Member> qd;
+  for (int b = 0; b < model.nbody; ++b)
+    qd.emplace_back(model.joint_name[b], joint_entry(v0, model.body_dof_offset[b], joint_nv(model.body_joint[b])));
+  return object_value({{"q", configuration_value(model, q0)}, {"qd", object_value(std::move(qd))}});
 }
 
 std::vector<Member> surface_members(const ShapeContact& c) {
@@ -860,6 +879,12 @@ std::string scene_to_json(const Scene& scene) {
                            {"gravity", numbers_value(model.gravity)}};
   if (env.initial_q.size() > 0 || env.initial_v.size() > 0)
     m.emplace_back("initial_state", initial_state_value(model, env));
+  if (env.drive_target_q.size() > 0) {
+    if (env.drive_target_q.size() != model.nq)
+      inexpressible("drive targets of " + std::to_string(env.drive_target_q.size()) + " values for nq " +
+                    std::to_string(model.nq));
+    m.emplace_back("drive_targets", configuration_value(model, env.drive_target_q));
+  }
   if (contacts.ground) m.emplace_back("ground", ground_value(contacts));
   if (!contacts.boxes.empty()) {
     std::vector<json::Value> boxes;

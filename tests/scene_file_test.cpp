@@ -142,6 +142,7 @@ void expect_same_scene(const Scene& a, const Scene& b) {
   expect_same_randomization(a.env.randomization, b.env.randomization);
   expect_bits(a.env.initial_q, b.env.initial_q, "initial_q");
   expect_bits(a.env.initial_v, b.env.initial_v, "initial_v");
+  expect_bits(a.env.drive_target_q, b.env.drive_target_q, "drive_target_q");
 }
 
 // ---- scene files in a temporary folder
@@ -172,6 +173,7 @@ std::string full_scene(const std::string& model) {
     "q": {"quadruped_root": [0.1, 0.2, 0.4, 0, 0, 0, 1], "FL_knee": -1.1, "HR_hip_flex": 0.3},
     "qd": {"quadruped_root": [0.1, 0, 0, 0, 0, 0.2], "FL_knee": 0.3}
   },
+  "drive_targets": {"FL_knee": -1.3, "HR_hip_flex": 0.5},
   "ground": {"height": 0.05, "normal": [0, 0, 2], "friction": 0.7, "restitution": 0.1, "layers": 2, "collides_with": 3},
   "boxes": [
     {"size": [1, 2, 0.2], "position": [2, 0, 0.1], "rpy": [0, 0, 0.3], "friction": 0.9, "restitution": 0.2},
@@ -254,6 +256,11 @@ TEST_F(SceneFile, EveryKeyLandsInItsField) {
   v0[5] = 0.2;
   v0[dof(m, "FL_knee")] = 0.3;
   EXPECT_EQ(e.initial_v, v0);
+  // drive targets: given joints set, the others neutral
+  Eigen::VectorXd targets = m.neutral_configuration();
+  targets[m.body_q_offset[m.joint_index("FL_knee")]] = -1.3;
+  targets[m.body_q_offset[m.joint_index("HR_hip_flex")]] = 0.5;
+  EXPECT_EQ(e.drive_target_q, targets);
 
   // ground and boxes
   const ContactSettings& c = e.step.contacts;
@@ -668,6 +675,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"state_wrong_size", R"(, "initial_state": {"q": {"quadruped_root": [0, 0, 1]}})",
                  {"initial_state: q.quadruped_root: expected an array of 7 numbers"}},
         BadScene{"state_tau", R"(, "initial_state": {"tau": {}})", {"initial_state.tau: unknown key"}},
+        BadScene{"target_unknown_joint", R"(, "drive_targets": {"knee": 0.1})",
+                 {"bad.json: drive_targets: q.knee: unknown joint \"knee\""}},
         BadScene{"randomization_low_above_high", R"(, "randomization": {"mass_scale": [1.1, 0.9]})",
                  {"bad.json: randomization.mass_scale: low"}},
         BadScene{"randomization_unknown_field", R"(, "randomization": {"mass": [1, 1]})",

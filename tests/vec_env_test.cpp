@@ -292,8 +292,12 @@ TEST(VecEnv, TorqueAndPositionTargetActionsReachTheSimulator) {
   VecEnvOptions options = standing_options(anymal());
   options.randomization = {};
   options.action_mode = ActionMode::Torque;
+  options.drive_target_q = options.initial_q;
+  options.drive_target_q[anymal().body_q_offset[anymal().dof_body[6]]] = 0.25;  // the drives hold these
   VecEnv torque(anymal(), 2, options);
   torque.reset();
+  EXPECT_TRUE(test::same_bits(torque.simulator().batch<float>().target_q.get(1),
+                              options.drive_target_q.cast<float>().cast<double>()));
   RowMatrix a = RowMatrix::Constant(2, torque.action_size(), 1.5);
   a(1, 0) = -2.0;
   torque.step(a);

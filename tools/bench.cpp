@@ -164,6 +164,11 @@ double pose_error(const Model& model, const Simulator& sim, const Eigen::VectorX
   return error;
 }
 
+// The drives' position targets: the scene's, else its initial pose.
+const Eigen::VectorXd& drive_targets(const Scene& scene) {
+  return scene.env.drive_target_q.size() > 0 ? scene.env.drive_target_q : scene.env.initial_q;
+}
+
 // Times the step for one precision at every thread count: a warm-up, then
 // `repeats` runs of `steps` steps, each from the initial state; then one
 // profiled run on the first thread count for the time split by phase. Every
@@ -176,7 +181,8 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   Simulator sim(model, config.copies, options, scene.env.dofs);
   const Eigen::VectorXd& q0 = scene.env.initial_q;
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
-  for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, q0, v0);
+  const Eigen::VectorXd& target = drive_targets(scene);
+  for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, target, v0);
   sim.set_state_all(q0, v0);
   if (plan.empty()) plan = sim.describe_plan();
   for (int threads : config.threads) {
@@ -195,7 +201,7 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   result.precision = precision;
   result.bytes_per_copy = sim.bytes_per_copy();
   result.faults = sim.fault_count();
-  result.max_pose_error = pose_error(model, sim, q0);
+  result.max_pose_error = pose_error(model, sim, target);
   {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism,
                                     static_cast<std::size_t>(config.threads.front()));
@@ -277,7 +283,7 @@ void print_text(const BenchReport& r, std::ostream& out) {
   const BenchConfig& c = r.config;
   out << "lockstep bench: " << c.model << (r.floating_base ? " (floating base)" : " (fixed base)") << "\n"
       << "scene: " << (r.contacts ? "contacts on" : "no contacts") << ", gravity on, PD drives on " << r.driven_dofs
-      << " of " << r.nv << " DOFs holding the initial pose, dt " << r.dt << " s\n"
+      << " of " << r.nv << " DOFs holding their targets, dt " << r.dt << " s\n"
       << "machine: " << r.machine << "\n"
       << "build: " << build_description() << "\n"
       << "timing: median of " << c.repeats << " repeats of " << c.steps << " steps of " << c.copies
@@ -407,13 +413,13 @@ std::optional<std::string> mujoco_difference(const Scene& scene) {
   return std::nullopt;
 }
 
-// Drive targets by joint name: the scene's initial pose of each 1-DOF joint.
+// Drive targets by joint name, for each 1-DOF joint.
 std::vector<std::pair<std::string, double>> joint_targets(const Scene& scene) {
   const Model& m = scene.model;
   std::vector<std::pair<std::string, double>> targets;
   for (int b = 0; b < m.nbody; ++b)
     if (m.body_joint[b] == JointType::Revolute || m.body_joint[b] == JointType::Prismatic)
-      targets.emplace_back(m.joint_name[b], scene.env.initial_q[m.body_q_offset[b]]);
+      targets.emplace_back(m.joint_name[b], drive_targets(scene)[m.body_q_offset[b]]);
   return targets;
 }
 

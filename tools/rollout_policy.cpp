@@ -50,7 +50,7 @@ Policy::Policy(PolicyKind kind, const VecEnv& env, std::uint64_t seed) : kind_(k
     if (one_dof) q_index_[j] = m.body_q_offset[body];
     effort_[j] = d.max_force;
     if (targets) {
-      if (one_dof) hold_[j] = o.initial_q[q_index_[j]];
+      if (one_dof) hold_[j] = o.drive_target_q[q_index_[j]];
       const double half_range = 0.5 * (d.upper - d.lower);
       amplitude_[j] = std::isfinite(half_range) ? std::min(0.3, half_range) : 0.3;
     } else {
@@ -86,7 +86,7 @@ void Policy::act(const VecEnv& env, std::int64_t step, RowMatrix& actions) const
       }
       // torque mode: a PD toward the initial pose (1-DOF joints), plus the wave
       const int dof = env.action_dofs()[j];
-      const double error = q_index_[j] >= 0 ? env.options().initial_q[q_index_[j]] - obs.q(c, q_index_[j]) : 0.0;
+      const double error = q_index_[j] >= 0 ? env.options().drive_target_q[q_index_[j]] - obs.q(c, q_index_[j]) : 0.0;
       const double pd = kHoldStiffness * error - kHoldDamping * obs.qd(c, dof);
       actions(c, j) = std::clamp(pd + a, -effort_[j], effort_[j]);
     }

@@ -2,8 +2,9 @@
 // action generators that exercise a scene without a learned policy.
 //
 //   zero    every action 0 (zero torque, or position targets at 0)
-//   hold    position targets at the initial pose; in torque mode a PD torque
-//           toward it (kp 50 N m/rad, kd 1 N m s/rad, clamped to the effort limit)
+//   hold    position targets at the scene's drive targets (its initial pose
+//           unless it names others); in torque mode a PD torque toward them
+//           (kp 50 N m/rad, kd 1 N m s/rad, clamped to the effort limit)
 //   sine    hold plus amplitude * sin(2 pi 0.5 Hz t + 0.5 j) on column j
 //   random  hold plus amplitude * U(-1, 1), drawn per (seed, copy, step, column)
 //           with Philox, so a copy's actions never depend on the batch
@@ -33,7 +34,7 @@ class Policy {
  private:
   PolicyKind kind_;
   std::uint64_t seed_;
-  Eigen::VectorXd hold_;       // (actions) the initial pose's targets, or 0 for torques
+  Eigen::VectorXd hold_;       // (actions) the drive targets, or 0 for torques
   Eigen::VectorXd amplitude_;  // (actions)
   Eigen::VectorXd effort_;     // (actions) the torque clamp
   std::vector<int> q_index_;   // (actions) the column's entry in q (1-DOF joints), -1 otherwise
