@@ -36,6 +36,7 @@ struct Randomization {
   UniformRange kd_scale{1.0, 1.0};
   UniformRange damping_scale{1.0, 1.0};
   UniformRange armature_add{0.0, 0.0};
+  UniformRange joint_friction_scale{1.0, 1.0};  // per DOF: scales its Coulomb joint friction
   // Added to each axis of the scene's gravity [m/s^2].
   UniformRange gravity_offset{0.0, 0.0};
   // Initial-state noise, added to the configured initial state: each

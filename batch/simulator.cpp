@@ -16,7 +16,7 @@ template <class T>
 StepBatch<T>::StepBatch(const Model& model, int copies, int width, int rows)
     : state(model, copies, width), target_q(copies, model.nq, width), target_v(copies, model.nv, width),
       drive_stiffness(copies, model.nv, width), drive_damping(copies, model.nv, width), joint_damping(copies, model.nv, width),
-      armature(copies, model.nv, width), impulse(copies, rows, width),
+      armature(copies, model.nv, width), joint_friction(copies, model.nv, width), impulse(copies, rows, width),
       initial_q(copies, model.nq, width), initial_v(copies, model.nv, width), fault(copies, 1, width) {
   target_q.set_all(model.neutral_configuration());
   initial_q.set_all(model.neutral_configuration());
@@ -27,7 +27,7 @@ template <class T>
 std::size_t StepBatch<T>::bytes_per_copy() const {
   std::size_t values = 0;
   for (const BatchArray<T>* a : {&state.q, &state.v, &state.tau, &state.qacc, &state.wrench, &state.inertia,
-                                 &state.gravity, &target_q, &target_v, &drive_stiffness, &drive_damping, &joint_damping, &armature, &impulse,
+                                 &state.gravity, &target_q, &target_v, &drive_stiffness, &drive_damping, &joint_damping, &armature, &joint_friction, &impulse,
                                  &initial_q, &initial_v, &fault, &applied_drive, &applied_passive, &applied_friction,
                                  &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
@@ -332,7 +332,7 @@ namespace {
 template <class Batch>
 auto copy_parameters(Batch& b) {
   return std::array{&b.state.tau, &b.state.wrench, &b.state.inertia, &b.state.gravity, &b.target_q, &b.target_v,
-                    &b.drive_stiffness, &b.drive_damping, &b.joint_damping, &b.armature, &b.ground,
+                    &b.drive_stiffness, &b.drive_damping, &b.joint_damping, &b.armature, &b.joint_friction, &b.ground,
                     &b.ground_friction, &b.initial_q, &b.initial_v, &b.fault};
 }
 
@@ -445,6 +445,12 @@ void Simulator::set_armature(int copy, const Eigen::VectorXd& armature) {
   check_copy(copy);
   check_per_dof(armature, "set_armature");
   visit([&](auto& b) { b.armature.set(copy, armature); });
+}
+
+void Simulator::set_joint_friction(int copy, const Eigen::VectorXd& friction) {
+  check_copy(copy);
+  check_per_dof(friction, "set_joint_friction");
+  visit([&](auto& b) { b.joint_friction.set(copy, friction); });
 }
 
 void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com,

@@ -49,6 +49,10 @@ struct StepBatch {
   // with damping, Simulator::set_joint_damping, or forced On).
   BatchArray<T> joint_damping;
   BatchArray<T> armature;
+  // (nv) per-copy Coulomb friction force of the DOFs that have friction
+  // rows (DofSettings::friction > 0 with the Coulomb model, or
+  // Stage::CoulombFriction forced On), from DofSettings::friction.
+  BatchArray<T> joint_friction;
   BatchArray<T> impulse;   // (rows) the solver's impulses of the last step: its warm start
   BatchArray<T> initial_q; // (nq) what a reset restores
   BatchArray<T> initial_v; // (nv)
@@ -167,6 +171,9 @@ class Simulator {
   void set_joint_damping(int copy, const Eigen::VectorXd& damping);
   // (nv) per-copy armature (rotor inertia) [kg m^2 or kg], overriding the model's.
   void set_armature(int copy, const Eigen::VectorXd& armature);
+  // (nv) per-copy Coulomb joint friction [N m or N], overriding
+  // DofSettings::friction on the DOFs that have friction rows (others ignore it).
+  void set_joint_friction(int copy, const Eigen::VectorXd& friction);
   // One body's inertial parameters in one copy: mass [kg], COM in the body
   // frame, rotational inertia about the COM in body axes (symmetric positive
   // semidefinite).

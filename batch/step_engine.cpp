@@ -94,11 +94,16 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   if (options.record_applied_torque)
     for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
       *a = BatchArray<T>(copies, nv, kWidth);
-  Eigen::VectorXd kp(nv), kd(nv), damping(nv);
-  for (int k = 0; k < nv; ++k) kp[k] = dofs[k].drive_stiffness, kd[k] = dofs[k].drive_damping, damping[k] = dofs[k].damping;
+  Eigen::VectorXd kp(nv), kd(nv), damping(nv), friction(nv);
+  for (int k = 0; k < nv; ++k) {
+    const DofSettings& d = dofs[k];
+    kp[k] = d.drive_stiffness, kd[k] = d.drive_damping, damping[k] = d.damping;
+    friction[k] = d.friction_model == FrictionModel::Coulomb ? d.friction : 0.0;
+  }
   batch_.drive_stiffness.set_all(kp);
   batch_.drive_damping.set_all(kd);
   batch_.joint_damping.set_all(damping);
+  batch_.joint_friction.set_all(friction);
   // The armature is per copy (StepBatch::armature): the step's ABA and CRBA
   // take it with the implicit diagonal (StepJointTerms), not from km_.
   std::fill(km_.dof_armature.begin(), km_.dof_armature.end(), T(0));
@@ -410,7 +415,8 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
   // Lanes where no row needs an impulse keep a zero impulse exactly; a
   // block where all lanes are so skips the rows (the same result, bit for
   // bit, as solving).
-  lane::mask_t<L> rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), h, erp);
+  const T* friction = batch_.joint_friction.block(block);
+  lane::mask_t<L> rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), friction, h, erp);
   if (mc > 0) {
     build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), h, mj, contacts, rows);
     rest = rest && contact_rows_at_rest<L>(rows, mj, contacts);
@@ -419,7 +425,7 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
   T* impulse = batch_.impulse.block(block);
   const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
   if (!lane::all<L>(rest)) {
-    build_joint_rows<L>(row_specs_, q, s.u1.data(), h, erp, rs);
+    build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
     for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
     for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
     factor_step_mass_matrix<L>(km_, batch_.state.inertia.block(block), s.terms.implicit_diagonal.data(), s.ws);

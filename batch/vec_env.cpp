@@ -30,6 +30,7 @@ enum Field : int {
   kRootPositionNoise,
   kRootYawNoise,
   kRootVelocityNoise,
+  kJointFrictionScale,
 };
 
 bool is_free_dof(const Model& m, int k) { return m.body_joint[m.dof_body[k]] == JointType::Free; }
@@ -145,10 +146,12 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   if (r.randomize_ground_friction && contact.ground)
     sim_.set_ground(c, contact.ground_height, contact.ground_normal, value(kGroundFriction, r.ground_friction, 0));
 
-  Eigen::VectorXd kp = Eigen::VectorXd::Zero(m.nv), kd = kp, damping = kp, armature = kp;
+  Eigen::VectorXd kp = Eigen::VectorXd::Zero(m.nv), kd = kp, damping = kp, armature = kp, friction = kp;
   for (int k = 0; k < m.nv; ++k) {
     const DofSettings& d = options_.dofs[k];
     damping[k] = d.damping * value(kDampingScale, r.damping_scale, k);
+    if (d.friction_model == FrictionModel::Coulomb)
+      friction[k] = d.friction * value(kJointFrictionScale, r.joint_friction_scale, k);
     armature[k] = m.dof_armature[k];
     if (is_free_dof(m, k)) continue;  // a floating root takes no drive and no rotor
     kp[k] = d.drive_stiffness * value(kKpScale, r.kp_scale, k);
@@ -158,6 +161,7 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   sim_.set_drive_gains(c, kp, kd);
   sim_.set_joint_damping(c, damping);
   sim_.set_armature(c, armature);
+  sim_.set_joint_friction(c, friction);
   Eigen::Vector3d gravity = m.gravity;
   for (int axis = 0; axis < 3; ++axis) gravity[axis] += value(kGravityOffset, r.gravity_offset, axis);
   sim_.set_gravity(c, gravity);

@@ -42,10 +42,11 @@ struct JointRow {
   bool positional;
 };
 
-// dt is the (sub)step.
+// dt is the (sub)step; friction: (nv) per lane, the Coulomb force of a
+// Friction row's DOF (the copy's own, StepBatch::joint_friction).
 template <class L>
 inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const lane::scalar_t<L>* q, const L* v_free,
-                             lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
+                             const lane::scalar_t<L>* friction, lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const T inf = std::numeric_limits<T>::infinity();
@@ -71,7 +72,7 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
       row.target_hi = L(spec.a);
       break;
     case JointRowKind::Friction:
-      row.hi = L(spec.a * dt);
+      row.hi = lane::load<L>(friction + spec.dof * W) * L(dt);
       row.lo = -row.hi;
       break;
   }
@@ -84,11 +85,11 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
 // holds in every lane skips the rows altogether.
 template <class L>
 lane::mask_t<L> joint_rows_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
-                                   const lane::scalar_t<L>* q, const L* v_free, lane::scalar_t<L> dt,
-                                   lane::scalar_t<L> erp) {
+                                   const lane::scalar_t<L>* q, const L* v_free, const lane::scalar_t<L>* friction,
+                                   lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
   lane::mask_t<L> rest(true);
   for (const JointRowSpec<lane::scalar_t<L>>& spec : specs) {
-    const JointRow<L> row = joint_row<L>(spec, q, v_free, dt, erp);
+    const JointRow<L> row = joint_row<L>(spec, q, v_free, friction, dt, erp);
     rest = rest && row_at_rest(row.v_free, row.target, row.target_hi, row.lo, row.hi, row.error, row.positional);
   }
   return rest;
@@ -97,10 +98,11 @@ lane::mask_t<L> joint_rows_at_rest(const std::vector<JointRowSpec<lane::scalar_t
 // Stores the rows of one block for the solver.
 template <class L>
 void build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const lane::scalar_t<L>* q,
-                      const L* v_free, lane::scalar_t<L> dt, lane::scalar_t<L> erp, JointRowScratch<L>& s) {
+                      const L* v_free, const lane::scalar_t<L>* friction, lane::scalar_t<L> dt, lane::scalar_t<L> erp,
+                      JointRowScratch<L>& s) {
   RowBlock<L>& rows = s.rows;
   for (std::size_t r = 0; r < specs.size(); ++r) {
-    const JointRow<L> row = joint_row<L>(specs[r], q, v_free, dt, erp);
+    const JointRow<L> row = joint_row<L>(specs[r], q, v_free, friction, dt, erp);
     s.sigma[r] = row.sigma;
     rows.error[r] = row.error;
     rows.target[r] = row.target;

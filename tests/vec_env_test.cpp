@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <set>
+
 namespace lockstep {
 namespace {
 
@@ -350,20 +352,26 @@ TEST(VecEnv, ASphericalJointTakesARotationVectorAsItsTarget) {
             1e-9);
 }
 
-// Per-copy armature and damping act as the model's and DofSettings' do.
-TEST(VecEnv, PerCopyArmatureAndDampingMatchTheModelsOwn) {
+// Per-copy armature, damping and Coulomb friction act as the model's and
+// DofSettings' do (friction on DOFs that have friction rows).
+TEST(VecEnv, PerCopyArmatureDampingAndFrictionMatchTheModelsOwn) {
   Model with = test::rod_chain({1.0, 0.5}, 0.4);
   Model without = with;
   with.dof_armature = {0.02, 0.03};
   std::vector<DofSettings> damped = default_dof_settings(with);
   damped[0].damping = 0.4;
   damped[1].damping = 0.1;
+  damped[0].friction = 0.3;
+  damped[1].friction = 0.2;
+  std::vector<DofSettings> rows_only = default_dof_settings(without);
+  for (DofSettings& d : rows_only) d.friction = 0.01;  // friction rows, their force per copy
   StepOptions options;
   options.precision = Precision::Double;
   Simulator reference(with, 1, options, damped);
-  Simulator per_copy(without, 1, options);
+  Simulator per_copy(without, 1, options, rows_only);
   per_copy.set_armature(0, Eigen::Vector2d(0.02, 0.03));
   per_copy.set_joint_damping(0, Eigen::Vector2d(0.4, 0.1));
+  per_copy.set_joint_friction(0, Eigen::Vector2d(0.3, 0.2));
   const Eigen::Vector2d q0(0.7, -0.4), v0(0.5, 1.0);
   reference.set_state(0, q0, v0);
   per_copy.set_state(0, q0, v0);
@@ -375,6 +383,26 @@ TEST(VecEnv, PerCopyArmatureAndDampingMatchTheModelsOwn) {
   plain.set_state(0, q0, v0);
   plain.step(200);
   EXPECT_GT((plain.q(0) - reference.q(0)).norm(), 1e-3);
+}
+
+// joint_friction_scale scales each copy's Coulomb friction, DOF by DOF.
+TEST(VecEnv, JointFrictionIsDrawnPerCopyAndDof) {
+  const Model chain = test::rod_chain({1.0, 0.5}, 0.4);
+  VecEnvOptions options;
+  options.dofs = default_dof_settings(chain);
+  for (DofSettings& d : options.dofs) d.friction = 0.3;
+  options.randomization.joint_friction_scale = {0.5, 2.0};
+  VecEnv env(chain, 6, options);
+  env.reset();
+  std::set<float> seen;
+  for (int c = 0; c < 6; ++c)
+    for (int k = 0; k < chain.nv; ++k) {
+      const float f = env.simulator().batch<float>().joint_friction.at(c, k);
+      EXPECT_GE(f, 0.15f * (1 - 1e-6f));
+      EXPECT_LE(f, 0.6f * (1 + 1e-6f));
+      seen.insert(f);
+    }
+  EXPECT_EQ(seen.size(), 12u);
 }
 
 TEST(VecEnv, RejectsBadUseWithClearErrors) {
