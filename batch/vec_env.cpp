@@ -96,7 +96,7 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options)
 void VecEnv::reset() {
   std::vector<int> all(copies());
   for (int c = 0; c < copies(); ++c) all[c] = c;
-  reset_copies(all);
+  restart(all);
   ready_ = true;
 }
 
@@ -105,7 +105,7 @@ void VecEnv::reset(const std::vector<int>& which) {
     if (c < 0 || c >= copies())
       throw std::out_of_range("VecEnv::reset: copy " + std::to_string(c) + " outside [0, " +
                               std::to_string(copies()) + ")");
-  reset_copies(which);
+  restart(which);
 }
 
 void VecEnv::reset_masked(const std::vector<std::uint8_t>& mask) {
@@ -115,6 +115,11 @@ void VecEnv::reset_masked(const std::vector<std::uint8_t>& mask) {
   std::vector<int> which;
   for (int c = 0; c < copies(); ++c)
     if (mask[c]) which.push_back(c);
+  restart(which);
+}
+
+void VecEnv::restart(const std::vector<int>& which) {
+  for (int c : which) last_fault_[c] = Fault::None;
   reset_copies(which);
 }
 
@@ -123,7 +128,6 @@ void VecEnv::reset_copies(const std::vector<int>& which) {
     randomize(c, reset_count_[c]);
     ++reset_count_[c];
     episode_step_[c] = 0;
-    last_fault_[c] = Fault::None;
   }
   observe(&which, observations_);
 }
@@ -271,22 +275,18 @@ void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
   visit_batch([&](const auto& b) {
     for (int c = 0; c < copies(); ++c) last_fault_[c] = static_cast<Fault>(static_cast<int>(b.fault.at(c, 0)));
   });
-  std::vector<int> ended;
+  ended_.clear();
   for (int c = 0; c < copies(); ++c) {
     faulted_[c] = last_fault_[c] != Fault::None;
     if (faulted_[c]) terminated_[c] = 1, reward_out_[c] = 0;
     ++episode_step_[c];
     truncated_[c] = !terminated_[c] && options_.episode_steps > 0 && episode_step_[c] >= options_.episode_steps;
-    if (terminated_[c] || truncated_[c]) ended.push_back(c);
+    if (terminated_[c] || truncated_[c]) ended_.push_back(c);
   }
   ++steps_;
-  if (!options_.auto_reset || ended.empty()) return;
-  copy_rows(ended, observations_, terminal_);
-  for (int c : ended) {
-    const Fault reason = last_fault_[c];
-    reset_copies({c});
-    last_fault_[c] = reason;  // the last step's reason stays readable
-  }
+  if (!options_.auto_reset || ended_.empty()) return;
+  copy_rows(ended_, observations_, terminal_);
+  reset_copies(ended_);  // fault() keeps the last step's reason
 }
 
 void VecEnv::copy_rows(const std::vector<int>& rows, const Observations& from, Observations& to) {

@@ -145,6 +145,9 @@ class VecEnv {
   const Simulator& simulator() const { return sim_; }
 
  private:
+  // A reset asked for: the copies' fault reasons cleared, then reset_copies.
+  void restart(const std::vector<int>& copies);
+  // New draws, reset count up, episode step 0, observation rows rewritten.
   void reset_copies(const std::vector<int>& copies);
   void randomize(int copy, std::uint32_t reset);
   void apply_actions(const Eigen::Ref<const RowMatrix>& actions);
@@ -170,6 +173,7 @@ class VecEnv {
   std::vector<std::uint8_t> terminated_, truncated_, faulted_;
   std::vector<Fault> last_fault_;
   std::vector<int> episode_step_;
+  std::vector<int> ended_;  // copies whose episode ended in the last step
   std::vector<std::uint32_t> reset_count_;
   std::int64_t steps_ = 0;
 };
