@@ -69,7 +69,28 @@ void read_entry(const json::Value& value, const std::string& where, JointType ty
   }
 }
 
+// `entries`, an object keyed by joint name, into out's layout for `part`;
+// a key's errors are named `where.joint`.
+void read_entries(const Model& model, const json::Value& entries, const std::string& where, Part part,
+                  Eigen::VectorXd& out) {
+  if (!entries.is_object())
+    throw StateError(where + ": expected an object keyed by joint name, got " + json::type_name(entries.type));
+  for (const auto& [name, value] : entries.object) {
+    const std::string at = where + "." + name;
+    const int body = joint_body(model, name, at);
+    const JointType type = model.body_joint[body];
+    if (part == Part::Q) read_entry(value, at, type, part, joint_nq(type), out, model.body_q_offset[body]);
+    else read_entry(value, at, type, part, joint_nv(type), out, model.body_dof_offset[body]);
+  }
+}
+
 }  // namespace
+
+Eigen::VectorXd read_configuration(const Model& model, const json::Value& entries, const std::string& where) {
+  Eigen::VectorXd q = model.neutral_configuration();
+  read_entries(model, entries, where, Part::Q, q);
+  return q;
+}
 
 JointState read_state(const Model& model, const json::Value& root, const std::string& source) {
   JointState state;
@@ -84,17 +105,8 @@ JointState read_state(const Model& model, const json::Value& root, const std::st
     else if (key == "qd") part = Part::Qd;
     else if (key == "tau") part = Part::Tau;
     else throw StateError(source + ": unknown key \"" + key + "\" (expected \"q\", \"qd\" or \"tau\")");
-    if (!entries.is_object())
-      throw StateError(source + ": " + key + ": expected an object keyed by joint name, got " +
-                       json::type_name(entries.type));
-    for (const auto& [name, value] : entries.object) {
-      const std::string where = source + ": " + part_name(part) + "." + name;
-      const int body = joint_body(model, name, where);
-      const JointType type = model.body_joint[body];
-      if (part == Part::Q) read_entry(value, where, type, part, joint_nq(type), state.q, model.body_q_offset[body]);
-      else if (part == Part::Qd) read_entry(value, where, type, part, joint_nv(type), state.v, model.body_dof_offset[body]);
-      else read_entry(value, where, type, part, joint_nv(type), state.tau, model.body_dof_offset[body]);
-    }
+    Eigen::VectorXd& out = part == Part::Q ? state.q : part == Part::Qd ? state.v : state.tau;
+    read_entries(model, entries, source + ": " + part_name(part), part, out);
   }
   return state;
 }

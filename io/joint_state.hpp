@@ -32,4 +32,9 @@ struct JointState {
 // for unknown keys or joints, wrong types or sizes and non-finite values.
 JointState read_state(const Model& model, const json::Value& root, const std::string& source);
 
+// One configuration (nq) from an object keyed by joint name, in the format
+// of the state's "q": joints not given are neutral. Errors are named
+// `where.joint`.
+Eigen::VectorXd read_configuration(const Model& model, const json::Value& entries, const std::string& where);
+
 }  // namespace lockstep

@@ -293,11 +293,8 @@ void read_initial_state(const json::Value& v, const At& at, const Model& model, 
 
 // Drive targets: joint-name keyed like initial_state's "q".
 void read_drive_targets(const json::Value& v, const At& at, const Model& model, VecEnvOptions& env) {
-  json::Value as_state;
-  as_state.type = json::Value::Type::Object;
-  as_state.object.emplace_back("q", v);
   try {
-    env.drive_target_q = read_state(model, as_state, at.file + ": " + at.path).q;
+    env.drive_target_q = read_configuration(model, v, at.file + ": " + at.path);
   } catch (const StateError& e) {
     throw SceneError(e.what());
   }

@@ -676,7 +676,7 @@ INSTANTIATE_TEST_SUITE_P(
                  {"initial_state: q.quadruped_root: expected an array of 7 numbers"}},
         BadScene{"state_tau", R"(, "initial_state": {"tau": {}})", {"initial_state.tau: unknown key"}},
         BadScene{"target_unknown_joint", R"(, "drive_targets": {"knee": 0.1})",
-                 {"bad.json: drive_targets: q.knee: unknown joint \"knee\""}},
+                 {"bad.json: drive_targets.knee: unknown joint \"knee\""}},
         BadScene{"randomization_low_above_high", R"(, "randomization": {"mass_scale": [1.1, 0.9]})",
                  {"bad.json: randomization.mass_scale: low"}},
         BadScene{"randomization_unknown_field", R"(, "randomization": {"mass": [1, 1]})",
