@@ -32,7 +32,7 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       contacts(contact.capacity, contact.rows_per_contact, km.nv, km.nbody, candidates), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv), lambda_start(joint_rows + contact.capacity * contact.rows_per_contact),
-      lambda_partial(lambda_start.size()) {}
+      lambda_partial(2 * lambda_start.size()) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -87,8 +87,7 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
       add_row(JointRowKind::Friction, k, d.friction, 0);
   }
   batch_.impulse = BatchArray<T>(copies, static_cast<int>(row_specs_.size()), kWidth);
-  contacts_first_ = options.solver == SolverType::PGS &&
-                    std::none_of(row_specs_.begin(), row_specs_.end(), [](const JointRowSpec<T>& r) {
+  contacts_first_ = std::none_of(row_specs_.begin(), row_specs_.end(), [](const JointRowSpec<T>& r) {
                       return r.kind == JointRowKind::Friction && r.a > 0;  // a row of zero friction never acts
                     });
   if (options.record_applied_torque)
@@ -431,23 +430,27 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     factor_step_mass_matrix<L>(km_, batch_.state.inertia.block(block), s.terms.implicit_diagonal.data(), s.ws);
     // With the contacts first, the joint rows' own block of D (and their
     // columns of Mt^-1) is needed only where some lane's limits act.
-    const bool contacts_first = contacts_first_ && !tgs && mc > 0 && mj > 0;
+    const bool contacts_first = contacts_first_ && mc > 0 && mj > 0;
     bool joint_block = !contacts_first;
     if (joint_block) joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
     if (mc > 0)
       contact_delassus<L>(km_, contact_params_, reinterpret_cast<const T*>(s.ws.matrix.data()), row_specs_, rs.sigma,
                           h, mj, contacts, rows);
-    if (tgs) {
-      tgs_solve(rows, options_.iterations, h);
-    } else if (contacts_first) {
-      const lane::mask_t<L> slack = pgs_slack_first_phase(rows, options_.iterations, mj, s.lambda_start);
+    // rows [first, m) by PGS or TGS; the lanes where rows [0, first) stayed slack
+    auto solve = [&](int first) {
+      if (tgs) return tgs_solve(rows, options_.iterations, h, first);
+      pgs_solve(rows, options_.iterations, first);
+      return rows_slack(rows, first);
+    };
+    if (contacts_first) {
+      const lane::mask_t<L> slack = slack_first_phase(rows, mj, s.lambda_start, solve);
       if (!lane::all<L>(slack)) {
         joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
         joint_block = true;
-        pgs_slack_second_phase(rows, options_.iterations, slack, s.lambda_start, s.lambda_partial);
+        slack_second_phase(rows, slack, s.lambda_start, s.lambda_partial, solve);
       }
     } else {
-      pgs_solve(rows, options_.iterations);
+      solve(0);
     }
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
     if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
@@ -455,7 +458,7 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
     if (tgs) {
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
-      add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
+      if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
       add_contact_impulses<L>(contacts, rows.lambda_sum.data() + mj, s.displacement.data());
       for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
     }

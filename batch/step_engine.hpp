@@ -91,7 +91,7 @@ class StepEngine final : public Simulator::Engine {
     std::vector<L> q_next;          // (nq) the step's new positions
     std::vector<L> q_stage, v_stage;  // RK4 stage state
     std::vector<L> v_sum, a_sum;      // RK4 weighted sums
-    std::vector<L> lambda_start, lambda_partial;  // (rows) pgs_solve_slack_first's scratch
+    std::vector<L> lambda_start, lambda_partial;  // (rows, 2 rows) slack_first_phase's scratch
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
 
@@ -124,9 +124,9 @@ class StepEngine final : public Simulator::Engine {
   StepBatch<T> batch_;
   std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
   bool profiling_ = false;
-  // PGS solves the contact rows first, the joint rows held slack
-  // (pgs_slack_first_phase); not with joint friction rows of nonzero
-  // friction, which act whenever a joint moves.
+  // The solver takes the contact rows first, the joint rows held slack
+  // (slack_first_phase); not with joint friction rows of nonzero friction,
+  // which act whenever a joint moves.
   bool contacts_first_ = false;
 };
 

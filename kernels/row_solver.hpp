@@ -164,47 +164,56 @@ void pgs_solve(RowBlock<L>& rows, int iterations, int first = 0) {
   for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(rows, first);
 }
 
-// PGS in two phases, each lane's result its own: rows [first, m) alone,
-// rows [0, first) held at zero impulse; a lane where those then need an
-// impulse (rows_slack) takes the solve of all rows from the same start
-// instead, run for the block only when some lane needs it. Where they stay
-// slack, zero impulse satisfies them, so the first phase's result solves the
-// whole problem (to the iterations' tolerance). The step puts the joint rows
-// first: a standing robot's limits are slack nearly always, and every sweep
-// then skips their share of D, whose block [0, first) x [0, first) the first
-// phase does not read (the step builds it only for a second phase).
+// A solve in two phases, each lane's result its own: rows [first, m)
+// alone, rows [0, first) held at zero impulse; a lane where those then need
+// an impulse (rows_slack; for TGS at any substep) takes the solve of all
+// rows from the same start instead, run for the block only when some lane
+// needs it. Where they stay slack, zero impulse satisfies them, so the first
+// phase's result solves the whole problem (to the iterations' tolerance).
+// The step puts the joint rows first: a standing robot's limits are slack
+// nearly always, and every sweep then skips their share of D, whose block
+// [0, first) x [0, first) the first phase does not read (the step builds it
+// only for a second phase).
 //
-// Phase one keeps the warm start in `start` (m rows) and returns the lanes
-// whose rows [0, first) stayed slack; phase two (when not all did) solves
-// all rows from `start` and keeps phase one's result in the slack lanes.
-template <class L>
-lane::mask_t<L> pgs_slack_first_phase(RowBlock<L>& rows, int iterations, int first, std::vector<L>& start) {
+// solve(first) runs PGS or TGS on rows [first, m) and returns the lanes
+// where rows [0, first) stayed slack. Phase one keeps the warm start in
+// `start` (m rows); phase two (when not all lanes stayed slack) solves all
+// rows from `start` and keeps phase one's impulses (and lambda_sum) in the
+// slack lanes; `partial`: 2 m rows of scratch.
+template <class L, class Solve>
+lane::mask_t<L> slack_first_phase(RowBlock<L>& rows, int first, std::vector<L>& start, Solve&& solve) {
   using T = lane::scalar_t<L>;
   for (int r = 0; r < rows.m; ++r) start[r] = rows.lambda[r];
   for (int r = 0; r < first; ++r) rows.lambda[r] = L(T(0));
-  pgs_solve(rows, iterations, first);
-  return rows_slack(rows, first);
+  return solve(first);
 }
 
-template <class L>
-void pgs_slack_second_phase(RowBlock<L>& rows, int iterations, const lane::mask_t<L>& slack,
-                            const std::vector<L>& start, std::vector<L>& partial) {
-  for (int r = 0; r < rows.m; ++r) {
+template <class L, class Solve>
+void slack_second_phase(RowBlock<L>& rows, const lane::mask_t<L>& slack, const std::vector<L>& start,
+                        std::vector<L>& partial, Solve&& solve) {
+  const int m = rows.m;
+  for (int r = 0; r < m; ++r) {
     partial[r] = rows.lambda[r];
+    partial[m + r] = rows.lambda_sum[r];
     rows.lambda[r] = start[r];
   }
-  pgs_solve(rows, iterations);
-  for (int r = 0; r < rows.m; ++r) rows.lambda[r] = lane::select(slack, partial[r], rows.lambda[r]);
+  solve(0);
+  for (int r = 0; r < m; ++r) {
+    rows.lambda[r] = lane::select(slack, partial[r], rows.lambda[r]);
+    rows.lambda_sum[r] = lane::select(slack, partial[m + r], rows.lambda_sum[r]);
+  }
 }
 
 // TGS over `substeps` substeps of h = dt / substeps: before each sweep the
 // positional rows' targets follow their error advanced by the displacement
-// so far (at their own correction rate, never below their floor); after it
-// every row's displacement grows by h v_r and lambda_sum by h lambda_r (the
-// integrator moves positions by h v_free plus the lambda_sum-mapped
-// impulses).
+// so far (at their own correction rate, between their floor and ceiling);
+// after it every row's displacement grows by h v_r and lambda_sum by h
+// lambda_r (the integrator moves positions by h v_free plus the
+// lambda_sum-mapped impulses). Like pgs_solve, it may leave rows [0, first)
+// at zero impulse; it then returns the lanes where they stayed slack at
+// every substep (all lanes when first is 0).
 template <class L>
-void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt) {
+lane::mask_t<L> tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, int first = 0) {
   using T = lane::scalar_t<L>;
   const int m = rows.m;
   const L h(dt / T(substeps)), inv_h(T(substeps) / dt);
@@ -212,18 +221,21 @@ void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt) {
     rows.displacement[r] = L(T(0));
     rows.lambda_sum[r] = L(T(0));
   }
+  lane::mask_t<L> slack(true);
   for (int k = 0; k < substeps; ++k) {
     for (int r = 0; r < m; ++r)
       if (rows.positional[r])
         rows.target[r] = rows.target_hi[r] = lane::max(
             lane::min(positional_target(rows.error[r] + rows.displacement[r], inv_h, rows.rate[r]), rows.ceiling[r]),
             rows.floor[r]);
-    gauss_seidel_sweep(rows);
+    gauss_seidel_sweep(rows, first);
+    if (first > 0) slack = slack && rows_slack(rows, first);
     for (int r = 0; r < m; ++r) {
-      rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r), rows.displacement[r]);
+      rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r, first), rows.displacement[r]);
       rows.lambda_sum[r] = lane::fmadd(h, rows.lambda[r], rows.lambda_sum[r]);
     }
   }
+  return slack;
 }
 
 }  // namespace lockstep

@@ -68,32 +68,45 @@ RowBlock<L> joint_and_contact_problem(const std::vector<double>& joint_target) {
   return rows;
 }
 
+// PGS (40 sweeps) or TGS (40 substeps of 0.01 s) on rows [first, m);
+// returns the lanes where rows [0, first) stayed slack.
+template <class L>
+lane::mask_t<L> solve_rows_from(RowBlock<L>& rows, bool tgs, int first) {
+  if (tgs) return tgs_solve(rows, 40, 0.4, first);
+  pgs_solve(rows, 40, first);
+  return rows_slack(rows, first);
+}
+
 // Lanes whose joint row stays slack take the contacts-only solve (and it
 // solves the whole problem); the others take the full solve, bit for bit
-// as pgs_solve gives it, whatever their neighbours.
+// as the solver gives it, whatever their neighbours; PGS and TGS.
 TEST(RowSolver, SlackFirstSolvesEachLaneOnItsOwn) {
   using L = lane::simd<double>;
   constexpr int W = static_cast<int>(lane::width_v<L>);
   std::vector<double> targets(W);
   for (int l = 0; l < W; ++l) targets[l] = l % 2 ? 3.0 : -50.0;  // odd lanes: row 0 must push
-  RowBlock<L> two_phase = joint_and_contact_problem<L>(targets);
-  std::vector<L> start(3), partial(3);
-  two_phase.D[0] = L(std::numeric_limits<double>::quiet_NaN());  // phase one reads no D among rows [0, 1)
-  const lane::mask_t<L> slack = pgs_slack_first_phase(two_phase, 40, 1, start);
-  two_phase.D[0] = L(1.5);
-  pgs_slack_second_phase(two_phase, 40, slack, start, partial);
-  for (int l = 0; l < W; ++l) {
-    RowBlock<double> full = joint_and_contact_problem<double>({targets[l]});
-    RowBlock<double> contacts_only = joint_and_contact_problem<double>({targets[l]});
-    pgs_solve(full, 40);
-    contacts_only.lambda[0] = 0;
-    pgs_solve(contacts_only, 40, 1);
-    const RowBlock<double>& expected = l % 2 ? full : contacts_only;
-    for (int r = 0; r < 3; ++r) {
-      EXPECT_EQ(two_phase.lambda[r].get(l), expected.lambda[r]) << "lane " << l << " row " << r;
-      EXPECT_NEAR(two_phase.lambda[r].get(l), full.lambda[r], 1e-9) << "lane " << l << " row " << r;
+  for (bool tgs : {false, true}) {
+    RowBlock<L> two_phase = joint_and_contact_problem<L>(targets);
+    std::vector<L> start(3), partial(6);
+    auto solve = [&](int first) { return solve_rows_from(two_phase, tgs, first); };
+    two_phase.D[0] = L(std::numeric_limits<double>::quiet_NaN());  // phase one reads no D among rows [0, 1)
+    const lane::mask_t<L> slack = slack_first_phase(two_phase, 1, start, solve);
+    two_phase.D[0] = L(1.5);
+    slack_second_phase(two_phase, slack, start, partial, solve);
+    for (int l = 0; l < W; ++l) {
+      RowBlock<double> full = joint_and_contact_problem<double>({targets[l]});
+      RowBlock<double> contacts_only = joint_and_contact_problem<double>({targets[l]});
+      solve_rows_from(full, tgs, 0);
+      contacts_only.lambda[0] = 0;
+      solve_rows_from(contacts_only, tgs, 1);
+      const RowBlock<double>& expected = l % 2 ? full : contacts_only;
+      for (int r = 0; r < 3; ++r) {
+        EXPECT_EQ(two_phase.lambda[r].get(l), expected.lambda[r]) << (tgs ? "TGS" : "PGS") << " lane " << l;
+        EXPECT_NEAR(two_phase.lambda[r].get(l), full.lambda[r], 1e-9) << (tgs ? "TGS" : "PGS") << " lane " << l;
+        if (tgs) EXPECT_EQ(two_phase.lambda_sum[r].get(l), expected.lambda_sum[r]) << "lane " << l << " row " << r;
+      }
+      EXPECT_EQ(two_phase.lambda[0].get(l) > 0, l % 2 == 1) << "lane " << l;
     }
-    EXPECT_EQ(two_phase.lambda[0].get(l) > 0, l % 2 == 1) << "lane " << l;
   }
 }
 
