@@ -187,19 +187,17 @@ TEST(Rollout, FilesDoNotDependOnTheThreadCount) {
     EXPECT_EQ(a.read_as<std::uint8_t>(name), b.read_as<std::uint8_t>(name)) << name;
 }
 
-// `lockstep rollout` killed with SIGKILL mid-run: the file opens, holds
-// every step it flushed, all finite, and does not claim to be complete.
-TEST(Rollout, AKilledRolloutLeavesAReadableIncompleteFile) {
-  const TempDir dir;
-  const std::string file = (dir.path / "killed.h5").string();
+// Runs `lockstep rollout` on the bundled scene into `file` until the file
+// shows at least 20 flushed steps, then sends `signal`; returns the wait
+// status and the steps seen before the signal.
+std::pair<int, std::int64_t> interrupt_rollout(const std::string& file, int signal) {
   const pid_t child = ::fork();
-  ASSERT_GE(child, 0);
+  if (child < 0) return {-1, 0};
   if (child == 0) {
     ::execl(LOCKSTEP_TOOL_PATH, "lockstep", "rollout", bundled_scene().c_str(), "--envs", "64", "--steps", "1000000",
             "--flush-seconds", "0.05", "--threads", "1", "--out", file.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
   }
-  // Wait for flushed steps, then kill without warning.
   std::int64_t seen = 0;
   for (int tries = 0; tries < 400 && seen < 20; ++tries) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -210,20 +208,44 @@ TEST(Rollout, AKilledRolloutLeavesAReadableIncompleteFile) {
       // not yet a whole file header: try again
     }
   }
-  ::kill(child, SIGKILL);
+  ::kill(child, signal);
   int status = 0;
   ::waitpid(child, &status, 0);
-  ASSERT_TRUE(WIFSIGNALED(status)) << "the rollout ended by itself (status " << status << ")";
-  ASSERT_GE(seen, 20) << "the rollout never flushed 20 steps";
+  return {status, seen};
+}
 
+// The file after an interrupted rollout opens, holds at least `seen` steps,
+// all finite, and does not claim to be complete.
+void expect_readable_incomplete(const std::string& file, std::int64_t seen) {
   const RolloutReader r(file);
   EXPECT_FALSE(r.complete());
   EXPECT_GE(r.steps(), seen);
-  for (const std::string& name : r.datasets()) {
-    const std::vector<double> values = r.read(name);
-    for (double x : values) ASSERT_TRUE(std::isfinite(x)) << name;
-  }
+  for (const std::string& name : r.datasets())
+    for (double x : r.read(name)) ASSERT_TRUE(std::isfinite(x)) << name;
   EXPECT_FALSE(r.has_attribute("steps"));  // the summary of a finished run
+}
+
+// `lockstep rollout` killed with SIGKILL mid-run: the file holds every step
+// it flushed.
+TEST(Rollout, AKilledRolloutLeavesAReadableIncompleteFile) {
+  const TempDir dir;
+  const std::string file = (dir.path / "killed.h5").string();
+  const auto [status, seen] = interrupt_rollout(file, SIGKILL);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the rollout ended by itself (status " << status << ")";
+  ASSERT_GE(seen, 20) << "the rollout never flushed 20 steps";
+  expect_readable_incomplete(file, seen);
+}
+
+// SIGINT (Ctrl-C) stops it after the step under way: exit code 130, every
+// recorded step written, the file marked incomplete.
+TEST(Rollout, AnInterruptedRolloutKeepsEveryStepItTook) {
+  const TempDir dir;
+  const std::string file = (dir.path / "interrupted.h5").string();
+  const auto [status, seen] = interrupt_rollout(file, SIGINT);
+  ASSERT_TRUE(WIFEXITED(status)) << "status " << status;
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  ASSERT_GE(seen, 20);
+  expect_readable_incomplete(file, seen);
 }
 
 }  // namespace

@@ -52,7 +52,8 @@ constexpr const char* kUsage =
     "  help\n"
     "\n"
     "Exit codes: 0 ok, 1 internal error, 2 bad arguments or input, 3 CPU lacks\n"
-    "required instructions, 4 the output file cannot be written. Formats: docs/cli.md.\n";
+    "required instructions, 4 the output file cannot be written, 130 a rollout\n"
+    "interrupted (its file keeps the steps taken). Formats: docs/cli.md.\n";
 
 }  // namespace
 

@@ -20,6 +20,7 @@ inline constexpr int kExitOk = 0;
 inline constexpr int kExitInternal = 1;  // a bug or an unexpected failure
 inline constexpr int kExitBadInput = 2;  // bad arguments, model, state or scene file
 inline constexpr int kExitOutput = 4;    // the output file cannot be written (path, permissions, full disk)
+inline constexpr int kExitInterrupted = 130;  // SIGINT or SIGTERM stopped a rollout (128 + SIGINT, as shells report it)
 
 // Bad command-line arguments; main prints the message and exits kExitBadInput.
 class UsageError : public std::runtime_error {

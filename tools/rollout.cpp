@@ -10,7 +10,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <iomanip>
 #include <optional>
@@ -23,6 +25,30 @@ namespace lockstep::cli {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// SIGINT or SIGTERM during a rollout: the loop stops after its step, and
+// the file keeps every step recorded, marked incomplete.
+std::atomic<bool> stop_requested{false};
+extern "C" void request_stop(int) { stop_requested.store(true); }
+
+// Installs request_stop for SIGINT and SIGTERM; the old handlers come back
+// with the object.
+class StopOnSignal {
+ public:
+  StopOnSignal() : old_int_(std::signal(SIGINT, request_stop)), old_term_(std::signal(SIGTERM, request_stop)) {
+    stop_requested.store(false);
+  }
+  ~StopOnSignal() {
+    std::signal(SIGINT, old_int_);
+    std::signal(SIGTERM, old_term_);
+  }
+  StopOnSignal(const StopOnSignal&) = delete;
+  StopOnSignal& operator=(const StopOnSignal&) = delete;
+
+ private:
+  void (*old_int_)(int);
+  void (*old_term_)(int);
+};
 
 struct RolloutConfig {
   std::string model;
@@ -140,8 +166,15 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   Progress progress(config.steps, config.envs);
   double stepping = 0;
   std::int64_t faults_seen = 0, episodes_ended = 0;
+  const StopOnSignal stop_on_signal;
   const auto start = Clock::now();
   for (std::int64_t t = 0; t < config.steps; ++t) {
+    if (stop_requested.load()) {
+      // the recorder's destructor writes and flushes the steps so far, complete = 0
+      std::fprintf(stderr, "\nlockstep rollout: interrupted after %lld of %lld steps; %s keeps them, marked incomplete\n",
+                   static_cast<long long>(t), static_cast<long long>(config.steps), config.out.c_str());
+      return kExitInterrupted;
+    }
     policy.act(env, t, actions);
     const auto before = Clock::now();
     env.step(actions);
