@@ -1,6 +1,7 @@
 #include "io/joint_state.hpp"
 
 #include <cmath>
+#include <limits>
 
 namespace lockstep {
 
@@ -65,7 +66,9 @@ void read_entry(const json::Value& value, const std::string& where, JointType ty
     if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance))
       throw StateError(where + ": the quaternion (qw,qx,qy,qz) has norm " + json::number(norm) +
                        "; it must be 1 within " + json::number(kQuaternionNormTolerance));
-    out.segment<4>(first) /= norm;
+    // A quaternion already unit to rounding is kept as written, so reading
+    // what was written after a first normalisation gives the same bits.
+    if (std::abs(norm - 1.0) > 4 * std::numeric_limits<double>::epsilon()) out.segment<4>(first) /= norm;
   }
 }
 

@@ -63,8 +63,7 @@ void disable_contacts(Scene& scene);
 // field other than the drive gains, max_force, drive type, damping and
 // friction changed from the model's defaults; a stage other than contacts
 // forced; the DOFs of one joint, or the shapes of one link, set
-// differently). Quaternions of the initial state read back normalised
-// (read_state), which may move them by an ulp.
+// differently). A quaternion not unit to rounding reads back normalised.
 std::string scene_to_json(const Scene& scene);
 
 }  // namespace lockstep

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+
 namespace lockstep {
 namespace {
 
@@ -80,6 +82,27 @@ TEST(CliState, NearlyUnitQuaternionsAreNormalised) {
   EXPECT_NE(error_of(model, R"({"q": {"shoulder": [0.5, 0, 0, 0]}})").find("q.shoulder: the quaternion"),
             std::string::npos);
   EXPECT_NE(error_of(model, R"({"q": {"bot_root": [0, 0, 0, 0, 0, 0, 0]}})").find("has norm 0"), std::string::npos);
+}
+
+// What a first read normalised reads back as written: writing a state and
+// reading it again keeps its bits (scene files round-trip through this).
+TEST(CliState, ANormalisedQuaternionReadsBackBitForBit) {
+  const Model model = test_model();
+  const int at = model.body_q_offset[model.joint_index("shoulder")];
+  auto as_text = [](const Eigen::Vector4d& x) {
+    std::string text = R"({"q": {"shoulder": [)";
+    for (int k = 0; k < 4; ++k) text += (k ? ", " : "") + json::number(x[k]);
+    return text + "]}}";
+  };
+  std::mt19937 rng(7);
+  std::normal_distribution<double> gauss;
+  for (int i = 0; i < 1000; ++i) {
+    Eigen::Vector4d written(gauss(rng), gauss(rng), gauss(rng), gauss(rng));
+    written *= (1 + 5e-4 * std::uniform_real_distribution<double>(-1, 1)(rng)) / written.norm();  // within 1e-3 of unit
+    const Eigen::Vector4d once = read(model, as_text(written)).q.segment<4>(at);
+    const Eigen::Vector4d twice = read(model, as_text(once)).q.segment<4>(at);
+    for (int k = 0; k < 4; ++k) ASSERT_EQ(twice[k], once[k]) << "quaternion " << i << " entry " << k;
+  }
 }
 
 TEST(CliState, ErrorsNameTheKey) {
