@@ -72,4 +72,12 @@ double draw(const UniformRange& range, std::uint64_t seed, int copy, std::uint32
   return range.low + (range.high - range.low) * unit_double(bits[0], bits[1]);
 }
 
+double draw(const Randomization& r, UniformRange Randomization::*range, std::uint64_t seed, int copy,
+            std::uint32_t reset, int k) {
+  const std::vector<RandomizationField>& fields = randomization_fields();
+  for (std::size_t f = 0; f < fields.size(); ++f)
+    if (fields[f].range == range) return draw(r.*range, seed, copy, reset, static_cast<int>(f), k);
+  throw std::logic_error("draw: a range missing from randomization_fields()");
+}
+
 }  // namespace lockstep

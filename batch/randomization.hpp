@@ -68,5 +68,9 @@ const std::vector<RandomizationField>& randomization_fields();
 
 // Draw k of field `field` for (seed, copy, reset), uniform in the range.
 double draw(const UniformRange& range, std::uint64_t seed, int copy, std::uint32_t reset, int field, int k);
+// The same for one of r's ranges, named by member (its field number is its
+// place in randomization_fields()).
+double draw(const Randomization& r, UniformRange Randomization::*range, std::uint64_t seed, int copy,
+            std::uint32_t reset, int k);
 
 }  // namespace lockstep

@@ -15,24 +15,6 @@ void require(bool ok, const std::string& message) {
   if (!ok) throw std::invalid_argument("VecEnv: " + message);
 }
 
-// Counter word 2 of each randomisation field (its place in randomization_fields()).
-enum Field : int {
-  kMassScale,
-  kComOffset,
-  kGroundFriction,
-  kKpScale,
-  kKdScale,
-  kDampingScale,
-  kArmatureAdd,
-  kGravityOffset,
-  kJointPositionNoise,
-  kJointVelocityNoise,
-  kRootPositionNoise,
-  kRootYawNoise,
-  kRootVelocityNoise,
-  kJointFrictionScale,
-};
-
 bool is_free_dof(const Model& m, int k) { return m.body_joint[m.dof_body[k]] == JointType::Free; }
 
 VecEnvOptions checked(const Model& model, VecEnvOptions o) {
@@ -138,36 +120,36 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   const Model& m = model();
   const Randomization& r = options_.randomization;
   const std::uint64_t seed = options_.seed;
-  auto value = [&](int field, const UniformRange& range, int k) { return draw(range, seed, c, reset, field, k); };
+  auto value = [&](UniformRange Randomization::*range, int k) { return draw(r, range, seed, c, reset, k); };
 
   for (int b = 0; b < m.nbody; ++b) {
-    const double scale = value(kMassScale, r.mass_scale, b);
+    const double scale = value(&Randomization::mass_scale, b);
     Eigen::Vector3d com = m.body_com[b];
-    for (int axis = 0; axis < 3; ++axis) com[axis] += value(kComOffset, r.com_offset, 3 * b + axis);
+    for (int axis = 0; axis < 3; ++axis) com[axis] += value(&Randomization::com_offset, 3 * b + axis);
     sim_.set_body_inertia(c, b, scale * m.body_mass[b], com, scale * m.body_inertia[b]);
   }
   const ContactSettings& contact = options_.step.contacts;
   if (r.randomize_ground_friction && contact.ground)
-    sim_.set_ground(c, contact.ground_height, contact.ground_normal, value(kGroundFriction, r.ground_friction, 0));
+    sim_.set_ground(c, contact.ground_height, contact.ground_normal, value(&Randomization::ground_friction, 0));
 
   Eigen::VectorXd kp = Eigen::VectorXd::Zero(m.nv), kd = kp, damping = kp, armature = kp, friction = kp;
   for (int k = 0; k < m.nv; ++k) {
     const DofSettings& d = options_.dofs[k];
-    damping[k] = d.damping * value(kDampingScale, r.damping_scale, k);
+    damping[k] = d.damping * value(&Randomization::damping_scale, k);
     if (d.friction_model == FrictionModel::Coulomb)
-      friction[k] = d.friction * value(kJointFrictionScale, r.joint_friction_scale, k);
+      friction[k] = d.friction * value(&Randomization::joint_friction_scale, k);
     armature[k] = m.dof_armature[k];
     if (is_free_dof(m, k)) continue;  // a floating root takes no drive and no rotor
-    kp[k] = d.drive_stiffness * value(kKpScale, r.kp_scale, k);
-    kd[k] = d.drive_damping * value(kKdScale, r.kd_scale, k);
-    armature[k] += value(kArmatureAdd, r.armature_add, k);
+    kp[k] = d.drive_stiffness * value(&Randomization::kp_scale, k);
+    kd[k] = d.drive_damping * value(&Randomization::kd_scale, k);
+    armature[k] += value(&Randomization::armature_add, k);
   }
   sim_.set_drive_gains(c, kp, kd);
   sim_.set_joint_damping(c, damping);
   sim_.set_armature(c, armature);
   sim_.set_joint_friction(c, friction);
   Eigen::Vector3d gravity = m.gravity;
-  for (int axis = 0; axis < 3; ++axis) gravity[axis] += value(kGravityOffset, r.gravity_offset, axis);
+  for (int axis = 0; axis < 3; ++axis) gravity[axis] += value(&Randomization::gravity_offset, axis);
   sim_.set_gravity(c, gravity);
 
   // Initial state: the configured one plus noise.
@@ -178,21 +160,21 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
       case JointType::Revolute:
       case JointType::Prismatic: {
         const DofSettings& d = options_.dofs[k0];
-        q[qo] = std::clamp(q[qo] + value(kJointPositionNoise, r.joint_position_noise, k0), d.lower, d.upper);
-        v[k0] += value(kJointVelocityNoise, r.joint_velocity_noise, k0);
+        q[qo] = std::clamp(q[qo] + value(&Randomization::joint_position_noise, k0), d.lower, d.upper);
+        v[k0] += value(&Randomization::joint_velocity_noise, k0);
         break;
       }
       case JointType::Spherical:
-        for (int i = 0; i < 3; ++i) v[k0 + i] += value(kJointVelocityNoise, r.joint_velocity_noise, k0 + i);
+        for (int i = 0; i < 3; ++i) v[k0 + i] += value(&Randomization::joint_velocity_noise, k0 + i);
         break;
       case JointType::Free: {
-        q[qo] += value(kRootPositionNoise, r.root_position_noise, k0);
-        q[qo + 1] += value(kRootPositionNoise, r.root_position_noise, k0 + 1);
-        const double yaw = value(kRootYawNoise, r.root_yaw_noise, b);
+        q[qo] += value(&Randomization::root_position_noise, k0);
+        q[qo + 1] += value(&Randomization::root_position_noise, k0 + 1);
+        const double yaw = value(&Randomization::root_yaw_noise, b);
         const Eigen::Quaterniond turned = Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())) *
                                           Eigen::Quaterniond(q[qo + 3], q[qo + 4], q[qo + 5], q[qo + 6]);
         q.segment<4>(qo + 3) << turned.w(), turned.x(), turned.y(), turned.z();
-        for (int i = 0; i < 6; ++i) v[k0 + i] += value(kRootVelocityNoise, r.root_velocity_noise, k0 + i);
+        for (int i = 0; i < 6; ++i) v[k0 + i] += value(&Randomization::root_velocity_noise, k0 + i);
         break;
       }
       case JointType::Fixed:

@@ -110,8 +110,7 @@ void put_field(void* frame, const RowMatrix& now, const RowMatrix& terminal, con
     for (Eigen::Index k = 0; k < cols; ++k) out[c * cols + k] = static_cast<T>(terminal(c, k));
 }
 
-}  // namespace
-
+// The per-step datasets in file order (enum Dataset).
 std::vector<StepDataset> rollout_step_datasets(const VecEnv& env) {
   const Model& m = env.model();
   const std::size_t n = env.copies();
@@ -130,6 +129,8 @@ std::vector<StepDataset> rollout_step_datasets(const VecEnv& env) {
     d.push_back({"contact_force", state, {n, std::size_t(m.nbody), 3}, "net contact force on each body, world [N]"});
   return d;
 }
+
+}  // namespace
 
 RolloutRecorder::RolloutRecorder(const VecEnv& env, const std::string& path, const RolloutInfo& info,
                                  RolloutFileOptions file)

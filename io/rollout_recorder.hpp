@@ -57,8 +57,4 @@ class RolloutRecorder {
   double seconds_recording_ = 0;
 };
 
-// The per-step datasets of `lockstep rollout` in file order, and the names
-// of the stored columns, for readers (tests, replay).
-std::vector<StepDataset> rollout_step_datasets(const VecEnv& env);
-
 }  // namespace lockstep

@@ -20,6 +20,13 @@ inline LinkSpec rod_link(const std::string& name, const std::string& parent, dou
   return link;
 }
 
+// The model of one articulation.
+inline Model build(const ArticulationSpec& spec) {
+  ModelBuilder builder;
+  builder.add_articulation(spec);
+  return builder.finalize();
+}
+
 // A fixed-base chain of revolute rods (about y) hanging from the world.
 inline Model rod_chain(const std::vector<double>& masses, double length) {
   ArticulationSpec spec;
@@ -33,46 +40,40 @@ inline Model rod_chain(const std::vector<double>& masses, double length) {
     spec.links.push_back(rod_link(name, parent, masses[i], length, i == 0 ? 0.0 : length));
     parent = name;
   }
-  ModelBuilder builder;
-  builder.add_articulation(spec);
-  return builder.finalize();
+  return build(spec);
 }
 
-// One link turning about z through its COM (no gravity torque), with the
-// given moment of inertia about the axis; limits when lower < upper.
+// A fixed base and one 1 kg link on a joint through its COM (no gravity
+// torque, axis z), principal inertia `inertia`; the joint's limits may be
+// set on the returned spec's links[1].
+inline ArticulationSpec one_link_spec(const std::string& name, const std::string& link_name, JointType type,
+                                      const Eigen::Vector3d& inertia) {
+  ArticulationSpec spec;
+  spec.name = name;
+  LinkSpec base;
+  base.name = "base";
+  spec.links.push_back(base);
+  LinkSpec link = joint_link(link_name, "base", type, Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero());
+  link.inertial.mass = 1.0;
+  link.inertial.inertia = inertia.asDiagonal();
+  spec.links.push_back(link);
+  return spec;
+}
+
+// One link turning about z through its COM, with the given moment of
+// inertia about the axis; limits when lower < upper.
 inline Model spinner(double inertia, double lower = -Model::kInfinity, double upper = Model::kInfinity) {
-  ArticulationSpec spec;
-  spec.name = "spinner";
-  LinkSpec base;
-  base.name = "base";
-  spec.links.push_back(base);
-  LinkSpec link = joint_link("wheel", "base", JointType::Revolute, Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero());
-  link.inertial.mass = 1.0;
-  link.inertial.inertia = Eigen::Vector3d(inertia, inertia, inertia).asDiagonal();
-  link.joint.limited = lower < upper && (std::isfinite(lower) || std::isfinite(upper));
-  link.joint.lower = lower;
-  link.joint.upper = upper;
-  spec.links.push_back(link);
-  ModelBuilder builder;
-  builder.add_articulation(spec);
-  return builder.finalize();
+  ArticulationSpec spec = one_link_spec("spinner", "wheel", JointType::Revolute, Eigen::Vector3d::Constant(inertia));
+  JointSpec& joint = spec.links[1].joint;
+  joint.limited = lower < upper && (std::isfinite(lower) || std::isfinite(upper));
+  joint.lower = lower;
+  joint.upper = upper;
+  return build(spec);
 }
 
-// One 1 kg link on a Spherical joint through its COM (no gravity torque),
-// principal inertia (0.02, 0.03, 0.04) kg m^2.
+// One link on a Spherical joint, principal inertia (0.02, 0.03, 0.04) kg m^2.
 inline Model ball_joint() {
-  ArticulationSpec spec;
-  spec.name = "ball";
-  LinkSpec base;
-  base.name = "base";
-  spec.links.push_back(base);
-  LinkSpec link = joint_link("arm", "base", JointType::Spherical, Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero());
-  link.inertial.mass = 1.0;
-  link.inertial.inertia = Eigen::Vector3d(0.02, 0.03, 0.04).asDiagonal();
-  spec.links.push_back(link);
-  ModelBuilder builder;
-  builder.add_articulation(spec);
-  return builder.finalize();
+  return build(one_link_spec("ball", "arm", JointType::Spherical, Eigen::Vector3d(0.02, 0.03, 0.04)));
 }
 
 // A free box of the given half sizes and mass.
@@ -86,9 +87,7 @@ inline Model free_box(const Eigen::Vector3d& half, double mass) {
   const Eigen::Vector3d s = half.cwiseAbs2();
   body.inertial.inertia = (mass / 3.0 * Eigen::Vector3d(s.y() + s.z(), s.x() + s.z(), s.x() + s.y())).asDiagonal();
   spec.links.push_back(body);
-  ModelBuilder builder;
-  builder.add_articulation(spec);
-  return builder.finalize();
+  return build(spec);
 }
 
 }  // namespace lockstep::test
