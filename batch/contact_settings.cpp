@@ -28,6 +28,8 @@ void validate_contact_settings(const Model& model, const ContactSettings& s) {
   const std::string at = "ContactSettings::";
   require(s.capacity >= 1, at + "capacity must be at least 1, got " + std::to_string(s.capacity));
   require(std::isfinite(s.margin) && s.margin >= 0, at + "margin must be finite and >= 0, got " + number(s.margin));
+  require(std::isfinite(s.speculative_speed) && s.speculative_speed >= 0,
+          at + "speculative_speed must be finite and >= 0, got " + number(s.speculative_speed));
   require(std::isfinite(s.stiffness) && s.stiffness >= 0,
           at + "stiffness must be finite and >= 0 (0: rigid), got " + number(s.stiffness));
   require(std::isfinite(s.damping) && s.damping >= 0, at + "damping must be finite and >= 0, got " + number(s.damping));

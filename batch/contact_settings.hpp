@@ -56,7 +56,13 @@ struct ContactSettings {
   std::vector<std::pair<std::string, std::string>> enabled_pairs, disabled_pairs;
 
   int capacity = 16;      // contact points kept per copy per step; more are dropped and counted
-  double margin = 0.01;   // m: contacts exist below this separation (speculative: they act only once it closes)
+  // Contacts exist below the separation margin + speculative_speed * dt
+  // (plus the distance the bodies' free motion can close within the step):
+  // speculative rows, which act only once the gap closes. The speed term
+  // catches what the solve itself sets moving (a box pushed by a finger
+  // into a wall), so a longer step looks further.
+  double margin = 0.001;            // m
+  double speculative_speed = 0.5;   // m/s
   // Compliance: a spring-damper normal force k (penetration) + c (approach
   // speed), integrated implicitly. stiffness 0: rigid, with the step's
   // error_reduction removing penetration.

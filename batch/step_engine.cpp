@@ -144,6 +144,7 @@ int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, 
   p.capacity = settings.capacity;
   p.rows_per_contact = settings.torsional_friction > 0 ? 4 : 3;
   p.margin = static_cast<T>(settings.margin);
+  p.speculative_speed = static_cast<T>(settings.speculative_speed);
   p.stiffness = static_cast<T>(settings.stiffness);
   p.damping = static_cast<T>(settings.damping);
   p.bounce_threshold = static_cast<T>(settings.bounce_threshold);

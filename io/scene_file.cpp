@@ -416,7 +416,7 @@ std::vector<std::pair<std::string, std::string>> read_link_pairs(const json::Val
 
 void read_contacts(const json::Value& v, const At& at, const Model& model, StepOptions& step) {
   const Object o(v, at,
-                 {"enabled", "self_collision", "capacity", "margin", "stiffness", "damping", "bounce_threshold",
+                 {"enabled", "self_collision", "capacity", "margin", "speculative_speed", "stiffness", "damping", "bounce_threshold",
                   "max_depenetration_speed", "torsional_friction", "links", "enabled_pairs", "disabled_pairs"});
   ContactSettings& c = step.contacts;
   o.with("enabled", [&](const json::Value& x, const At& a) {
@@ -427,6 +427,7 @@ void read_contacts(const json::Value& v, const At& at, const Model& model, StepO
   });
   set_int(o, "capacity", c.capacity, 1);
   set_number(o, "margin", c.margin, Bound::NonNegative);
+  set_number(o, "speculative_speed", c.speculative_speed, Bound::NonNegative);
   set_number(o, "stiffness", c.stiffness, Bound::NonNegative);
   set_number(o, "damping", c.damping, Bound::NonNegative);
   set_number(o, "bounce_threshold", c.bounce_threshold, Bound::NonNegative);
@@ -749,6 +750,7 @@ json::Value contacts_value(const Model& model, const StepOptions& step) {
                            {"self_collision", bool_value(self_collision_flag(model, c))},
                            {"capacity", number_value(c.capacity)},
                            {"margin", number_value(c.margin)},
+                           {"speculative_speed", number_value(c.speculative_speed)},
                            {"stiffness", number_value(c.stiffness)},
                            {"damping", number_value(c.damping)},
                            {"bounce_threshold", number_value(c.bounce_threshold)},

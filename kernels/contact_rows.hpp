@@ -42,7 +42,7 @@ template <class T>
 struct ContactParams {
   int capacity = 16;        // slots per copy
   int rows_per_contact = 3; // 3, or 4 with torsional friction
-  T margin = 0;
+  T margin = 0, speculative_speed = 0;  // contacts exist below margin + speculative_speed h
   T stiffness = 0, damping = 0;  // N/m, N s/m; stiffness 0: rigid
   T bounce_threshold = 0;
   T max_depenetration_speed = 0;  // the ceiling of a normal row's target
@@ -180,7 +180,7 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
   using namespace contact_detail;
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv, k = s.k;
-  const L zero(T(0)), one(T(1)), margin(p.margin);
+  const L zero(T(0)), one(T(1)), margin(p.margin + p.speculative_speed * h);
   const Vec3<L> plane_n = {lane::load<L>(arrays.ground), lane::load<L>(arrays.ground + W),
                            lane::load<L>(arrays.ground + 2 * W)};
   const L plane_d = lane::load<L>(arrays.ground + 3 * W);

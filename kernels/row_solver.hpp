@@ -38,6 +38,7 @@ struct RowBlock {
   std::vector<L> floor;        // (m) positional rows: lowest target (restitution's bounce velocity; -inf if none)
   std::vector<L> ceiling;      // (m) positional rows: highest correction target (depenetration cap; +inf if none), below the floor
   std::vector<L> D;            // (m x m) Delassus matrix
+  std::vector<L> inv_diag;     // (m) 1 / D_rr, set by the solves before their sweeps
   std::vector<L> v_free;       // (m) row velocity before the solve
   std::vector<L> target, target_hi, lo, hi;  // (m) velocity band and impulse box
   std::vector<L> error;        // (m) position error of positional rows (>= 0: separated)
@@ -51,7 +52,7 @@ struct RowBlock {
       : m(capacity), bound_row(capacity, -1), mu(capacity), cone(capacity, 0), positional(capacity, 0),
         rate(capacity), floor(capacity, L(-std::numeric_limits<lane::scalar_t<L>>::infinity())),
         ceiling(capacity, L(std::numeric_limits<lane::scalar_t<L>>::infinity())),
-        D(capacity * capacity), v_free(capacity), target(capacity),
+        D(capacity * capacity), inv_diag(capacity), v_free(capacity), target(capacity),
         target_hi(capacity), lo(capacity), hi(capacity), error(capacity), lambda(capacity), lambda_sum(capacity),
         displacement(capacity) {}
 };
@@ -112,6 +113,13 @@ inline L row_velocity(const RowBlock<L>& rows, int r, int first = 0) {
   return v;
 }
 
+// 1 / D_rr of rows [first, m), once per solve rather than once per sweep.
+template <class L>
+inline void invert_diagonal(RowBlock<L>& rows, int first) {
+  using T = lane::scalar_t<L>;
+  for (int r = first; r < rows.m; ++r) rows.inv_diag[r] = L(T(1)) / rows.D[r * rows.m + r];
+}
+
 // Per lane: true where rows [0, count), at zero impulse, need none at the
 // impulses of rows [count, m) (their velocity in band, as row_at_rest asks
 // of v_free): then zero is their part of the solution. Reads no entry of D
@@ -126,7 +134,7 @@ inline lane::mask_t<L> rows_slack(const RowBlock<L>& rows, int count) {
 }
 
 // One Gauss-Seidel sweep over rows [first, m); v_r recomputed from their
-// impulses.
+// impulses. Needs invert_diagonal.
 // A cone pair is updated together: each row's unclamped step at the pair's
 // current velocities, then the pair projected radially onto the disc of
 // radius mu lambda_bound (Coulomb's isotropic cone, not a pyramid).
@@ -135,9 +143,9 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows, int first = 0) {
   using T = lane::scalar_t<L>;
   const int m = rows.m;
   for (int r = first; r < m; ++r) {
-    const L inv_d = L(T(1)) / rows.D[r * m + r];
+    const L inv_d = rows.inv_diag[r];
     if (rows.cone[r]) {
-      const L inv_d2 = L(T(1)) / rows.D[(r + 1) * m + r + 1];
+      const L inv_d2 = rows.inv_diag[r + 1];
       const L a = rows.lambda[r] - row_velocity(rows, r, first) * inv_d;
       const L b = rows.lambda[r + 1] - row_velocity(rows, r + 1, first) * inv_d2;
       const L radius = rows.mu[r] * rows.lambda[rows.bound_row[r]];
@@ -161,6 +169,7 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows, int first = 0) {
 // PGS on rows [first, m), the rows before them held at zero impulse.
 template <class L>
 void pgs_solve(RowBlock<L>& rows, int iterations, int first = 0) {
+  invert_diagonal(rows, first);
   for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(rows, first);
 }
 
@@ -221,6 +230,7 @@ lane::mask_t<L> tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt,
     rows.displacement[r] = L(T(0));
     rows.lambda_sum[r] = L(T(0));
   }
+  invert_diagonal(rows, first);
   lane::mask_t<L> slack(true);
   for (int k = 0; k < substeps; ++k) {
     for (int r = 0; r < m; ++r)

@@ -71,6 +71,7 @@ void expect_same_contacts(const ContactSettings& a, const ContactSettings& b) {
   EXPECT_EQ(a.disabled_pairs, b.disabled_pairs);
   EXPECT_EQ(a.capacity, b.capacity);
   EXPECT_BITS(a.margin, b.margin);
+  EXPECT_BITS(a.speculative_speed, b.speculative_speed);
   EXPECT_BITS(a.stiffness, b.stiffness);
   EXPECT_BITS(a.damping, b.damping);
   EXPECT_BITS(a.bounce_threshold, b.bounce_threshold);
@@ -180,7 +181,7 @@ std::string full_scene(const std::string& model) {
     {"size": [0.5, 0.5, 0.5], "rotation": [[0, -1, 0], [1, 0, 0], [0, 0, 1]], "layers": 4, "collides_with": 5}
   ],
   "contacts": {
-    "enabled": true, "self_collision": true, "capacity": 24, "margin": 0.02, "stiffness": 1e5, "damping": 300,
+    "enabled": true, "self_collision": true, "capacity": 24, "margin": 0.02, "speculative_speed": 0.25, "stiffness": 1e5, "damping": 300,
     "bounce_threshold": 0.3, "max_depenetration_speed": 0.5, "torsional_friction": 0.01,
     "links": {"FL_foot": {"friction": 1.2, "restitution": 0.05}, "base": {"layers": 6}},
     "enabled_pairs": [["FL_foot", "FR_foot"]],
@@ -291,6 +292,7 @@ TEST_F(SceneFile, EveryKeyLandsInItsField) {
   EXPECT_EQ(c.self_collision, std::vector<bool>{true});
   EXPECT_EQ(c.capacity, 24);
   EXPECT_EQ(c.margin, 0.02);
+  EXPECT_EQ(c.speculative_speed, 0.25);
   EXPECT_EQ(c.stiffness, 1e5);
   EXPECT_EQ(c.damping, 300);
   EXPECT_EQ(c.bounce_threshold, 0.3);
