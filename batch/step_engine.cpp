@@ -137,6 +137,12 @@ int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, 
     spec.restitution = static_cast<T>(pair.restitution);
     spec.first_candidate = pair.first_candidate;
     spec.candidates = pair_candidates(pair.kind);
+    std::vector<bool> moves(km_.nv, false);  // the joints from either body to its root
+    for (int body : {pair.a.body, pair.b.body})
+      for (int j = body; j >= 0; j = km_.body_parent[j])
+        for (int d = 0; d < joint_nv(km_.body_joint[j]); ++d) moves[km_.body_dof_offset[j] + d] = true;
+    for (int j = 0; j < km_.nv; ++j)
+      if (moves[j]) spec.dofs.push_back(j);
     most = std::max(most, spec.candidates);
     contact_pairs_.push_back(spec);
   }
@@ -429,25 +435,35 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
     for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
     factor_step_mass_matrix<L>(km_, batch_.state.inertia.block(block), s.terms.implicit_diagonal.data(), s.ws);
+    const T* H = reinterpret_cast<const T*>(s.ws.matrix.data());
     // With the contacts first, the joint rows' own block of D (and their
-    // columns of Mt^-1) is needed only where some lane's limits act.
+    // columns of Mt^-1) is needed only where some lane's limits act; PGS
+    // then also tests the joint rows against the contacts' velocity change
+    // rather than through D's coupling block.
     const bool contacts_first = contacts_first_ && mc > 0 && mj > 0;
     bool joint_block = !contacts_first;
     if (joint_block) joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
-    if (mc > 0)
-      contact_delassus<L>(km_, contact_params_, reinterpret_cast<const T*>(s.ws.matrix.data()), row_specs_, rs.sigma,
-                          h, mj, contacts, rows);
+    bool coupling = false;
+    auto couple = [&] {
+      if (!coupling && mc > 0 && mj > 0) contact_joint_delassus<L>(km_, H, row_specs_, rs.sigma, mj, contacts, rows);
+      coupling = true;
+    };
+    if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
+    if (!contacts_first || tgs) couple();
     // rows [first, m) by PGS or TGS; the lanes where rows [0, first) stayed slack
     auto solve = [&](int first) {
       if (tgs) return tgs_solve(rows, options_.iterations, h, first);
       pgs_solve(rows, options_.iterations, first);
-      return rows_slack(rows, first);
+      if (first == 0) return lane::mask_t<L>(true);
+      contact_velocity_change<L>(km_, H, rows.lambda.data() + mj, contacts);
+      return joint_rows_slack<L>(row_specs_, rs, contacts.dv.data());
     };
     if (contacts_first) {
       const lane::mask_t<L> slack = slack_first_phase(rows, mj, s.lambda_start, solve);
       if (!lane::all<L>(slack)) {
         joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
         joint_block = true;
+        couple();
         slack_second_phase(rows, slack, s.lambda_start, s.lambda_partial, solve);
       }
     } else {
@@ -455,12 +471,12 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     }
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
     if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
-    add_contact_impulses<L>(contacts, rows.lambda.data() + mj, s.u1.data());
+    if (mc > 0) add_contact_impulses<L>(km_, H, rows.lambda.data() + mj, contacts, s.u1.data());
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
     if (tgs) {
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
       if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
-      add_contact_impulses<L>(contacts, rows.lambda_sum.data() + mj, s.displacement.data());
+      if (mc > 0) add_contact_impulses<L>(km_, H, rows.lambda_sum.data() + mj, contacts, s.displacement.data());
       for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
     }
     for (int r = 0; r < mj; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);

@@ -19,6 +19,7 @@
 #include "kernels/joint_rows.hpp"
 #include "kernels/pair_kind.hpp"
 
+#include <algorithm>
 #include <limits>
 #include <vector>
 
@@ -36,6 +37,7 @@ struct ContactPairSpec {
   T reach_a = 0, reach_b = 0;    // |shape origin| + radius, on the body: a point's distance from the body origin
   T friction = 0, restitution = 0;  // combined (for the ground: B's own friction)
   int first_candidate = 0, candidates = 0;
+  std::vector<int> dofs;  // the DOFs that move body A or body B, ascending
 };
 
 template <class T>
@@ -63,14 +65,24 @@ struct ContactScratch {
   // per slot
   std::vector<L> id, separation, mu, restitution;
   std::vector<Vec3<L>> point, normal;
+  std::vector<unsigned char> moves;  // (capacity x nv) 1: the DOF moves a body of some lane's point in the slot
+  std::vector<int> support;          // (capacity x nv) those DOFs, ascending (closed under dof_parent)
+  std::vector<int> support_size;     // (capacity)
+  std::vector<int> common;           // (nv) DOFs two slots share
   std::vector<L> J;     // (capacity x k x nv) rows: normal, t1, t2[, torsion]
-  std::vector<L> X;     // (capacity x k x nv) Mt^-1 J^T
+  // With Mt = L^T Dg L (ltdl_factor): Y = L^-T J^T and Z = Dg^-1 Y, on the
+  // slot's support only (other entries are stale); X = Mt^-1 J^T = L^-1 Z,
+  // dense, only where the joint rows' coupling needs it.
+  std::vector<L> Y, Z, X;  // (capacity x k x nv)
+  std::vector<L> inv_dg;   // (nv) 1 / Dg
+  std::vector<L> dv;       // (nv) Mt^-1 J^T x of some impulses x
   std::vector<L> warm;  // (capacity x k) last step's impulses of the same points
 
   ContactScratch(int capacity_, int k_, int nv_, int nbody, int max_candidates)
       : capacity(capacity_), k(k_), nv(nv_), count(T(0)), candidates(max_candidates), candidate_J(k_ * nv_),
         id(capacity_), separation(capacity_), mu(capacity_), restitution(capacity_), point(capacity_),
-        normal(capacity_), J(capacity_ * k_ * nv_), X(capacity_ * k_ * nv_), warm(capacity_ * k_) {
+        normal(capacity_), moves(capacity_ * nv_), support(capacity_ * nv_), support_size(capacity_), common(nv_),
+        J(capacity_ * k_ * nv_), Y(J.size()), Z(J.size()), X(J.size()), inv_dg(nv_), dv(nv_), warm(capacity_ * k_) {
     linear_speed.resize(nbody);
     angular_speed.resize(nbody);
   }
@@ -225,11 +237,14 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
         s.separation[fresh] = s.mu[fresh] = s.restitution[fresh] = zero;
         s.point[fresh] = s.normal[fresh] = {zero, zero, zero};
         for (int i = 0; i < k * nv; ++i) s.J[fresh * k * nv + i] = zero;
+        for (int j = 0; j < nv; ++j) s.moves[fresh * nv + j] = 0;
         ++s.slots;
       }
       const L id(static_cast<T>(pair.first_candidate + c));
       for (int slot = 0; slot < s.slots; ++slot) {
         const auto here = active && (s.count == L(static_cast<T>(slot)));
+        if (lane::all<L>(!here)) continue;
+        for (int j : pair.dofs) s.moves[slot * nv + j] = 1;
         s.id[slot] = lane::select(here, id, s.id[slot]);
         s.separation[slot] = lane::select(here, point.separation, s.separation[slot]);
         s.mu[slot] = lane::select(here, mu, s.mu[slot]);
@@ -318,31 +333,75 @@ lane::mask_t<L> contact_rows_at_rest(const RowBlock<L>& rows, int first, const C
   return rest;
 }
 
-// The contact rows' blocks of D = J Mt^-1 J^T, with Mt factored in H
-// (factor_step_mass_matrix): X = Mt^-1 J^T per row, D between contact rows J X,
-// between a joint row (sigma e_dof) and a contact row sigma X[dof]. A
+namespace contact_detail {
+
+// x <- L^-T x, x zero outside `dofs` (ascending, closed under dof_parent):
+// ltdl_solve's first pass, leaves to root, on those DOFs only (the others
+// stay zero).
+template <class L>
+void transpose_solve_on(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, L* x, const int* dofs,
+                        int n) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  for (int i = n - 1; i >= 0; --i) {
+    const int k = dofs[i];
+    const L xk = x[k];
+    for (int a = km.dof_parent[k]; a >= 0; a = km.dof_parent[a])
+      x[a] = lane::fnmadd(lane::load<L>(H + (k * nv + a) * W), xk, x[a]);
+  }
+}
+
+}  // namespace contact_detail
+
+// The contact rows' block of D = J Mt^-1 J^T, with Mt factored in H as
+// L^T Dg L (factor_step_mass_matrix): Y = L^-T J^T and Z = Dg^-1 Y per row,
+// D_ij = Z_i . Y_j. A row's J is zero outside the DOFs that move its
+// slot's bodies, and so is its Y (the L^-T pass only carries entries to
+// ancestors), so each product runs over the DOFs two slots share: a foot's
+// rows reach 9 of anymal_b's 18 DOFs, two feet share the base's 6. A
 // compliant normal row adds its compliance 1 / (h (k h + c)) to its
 // diagonal; an empty slot's rows, and rows with no mobility, get a unit
-// diagonal (their impulse is 0).
+// diagonal (their impulse is 0). The coupling with the joint rows is
+// contact_joint_delassus's.
 template <class L>
 void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactParams<lane::scalar_t<L>>& p,
-                      const lane::scalar_t<L>* H, const std::vector<JointRowSpec<lane::scalar_t<L>>>& joint_specs,
-                      const std::vector<L>& sigma, lane::scalar_t<L> h, int first, ContactScratch<L>& s,
+                      const lane::scalar_t<L>* H, lane::scalar_t<L> h, int first, ContactScratch<L>& s,
                       RowBlock<L>& rows) {
   using T = lane::scalar_t<L>;
-  using contact_detail::dot_n;
-  const int nv = s.nv, k = s.k, m = rows.m, mc = k * s.slots;
-  for (int i = 0; i < mc; ++i) {
-    L* X = &s.X[i * nv];
-    for (int j = 0; j < nv; ++j) X[j] = s.J[i * nv + j];
-    ltdl_solve<L>(km, H, reinterpret_cast<T*>(X));
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = s.nv, k = s.k, m = rows.m;
+  for (int j = 0; j < nv; ++j) s.inv_dg[j] = L(T(1)) / lane::load<L>(H + (j * nv + j) * W);
+  for (int c = 0; c < s.slots; ++c) {
+    int* support = &s.support[c * nv];
+    int n = 0;
+    for (int j = 0; j < nv; ++j)
+      if (s.moves[c * nv + j]) support[n++] = j;
+    s.support_size[c] = n;
+    for (int i = c * k; i < (c + 1) * k; ++i) {
+      L* Y = &s.Y[i * nv];
+      L* Z = &s.Z[i * nv];
+      for (int t = 0; t < n; ++t) Y[support[t]] = s.J[i * nv + support[t]];
+      contact_detail::transpose_solve_on<L>(km, H, Y, support, n);
+      for (int t = 0; t < n; ++t) Z[support[t]] = Y[support[t]] * s.inv_dg[support[t]];
+    }
   }
-  for (int i = 0; i < mc; ++i)
-    for (int j = i; j < mc; ++j) rows.D[(first + i) * m + first + j] = rows.D[(first + j) * m + first + i] =
-                                     dot_n(&s.J[i * nv], &s.X[j * nv], nv);
-  for (int r = 0; r < first; ++r)
-    for (int i = 0; i < mc; ++i)
-      rows.D[r * m + first + i] = rows.D[(first + i) * m + r] = sigma[r] * s.X[i * nv + joint_specs[r].dof];
+  for (int c1 = 0; c1 < s.slots; ++c1)
+    for (int c2 = c1; c2 < s.slots; ++c2) {
+      const int* s1 = &s.support[c1 * nv];
+      const int* s2 = &s.support[c2 * nv];
+      const int* common = s.common.data();
+      const int shared = static_cast<int>(
+          std::set_intersection(s1, s1 + s.support_size[c1], s2, s2 + s.support_size[c2], s.common.begin()) -
+          s.common.begin());
+      for (int i = c1 * k; i < (c1 + 1) * k; ++i)
+        for (int j = c2 == c1 ? i : c2 * k; j < (c2 + 1) * k; ++j) {
+          const L* Zi = &s.Z[i * nv];
+          const L* Yj = &s.Y[j * nv];
+          L sum(T(0));
+          for (int t = 0; t < shared; ++t) sum = lane::fmadd(Zi[common[t]], Yj[common[t]], sum);
+          rows.D[(first + i) * m + first + j] = rows.D[(first + j) * m + first + i] = sum;
+        }
+    }
   const L compliance(p.stiffness > 0 ? T(1) / (h * (p.stiffness * h + p.damping)) : T(0));
   const L zero(T(0)), one(T(1));
   for (int c = 0; c < s.slots; ++c) {
@@ -358,13 +417,53 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
   }
 }
 
-// out[j] += sum over contact rows i of x_i X_i[j]: the velocity change of
-// the contact impulses x (or the displacement of TGS's lambda_sum).
+// The coupling of the contact rows with the joint rows [0, first) (J_r =
+// sigma_r e_dof): D_ri = sigma_r X_i[dof_r], X_i = Mt^-1 J_i^T = L^-1 Z_i.
+// Needs contact_delassus.
 template <class L>
-void add_contact_impulses(const ContactScratch<L>& s, const L* x, L* out) {
-  const int nv = s.nv, mc = s.k * s.slots;
-  for (int i = 0; i < mc; ++i)
-    for (int j = 0; j < nv; ++j) out[j] = lane::fmadd(x[i], s.X[i * nv + j], out[j]);
+void contact_joint_delassus(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H,
+                            const std::vector<JointRowSpec<lane::scalar_t<L>>>& joint_specs, const std::vector<L>& sigma,
+                            int first, ContactScratch<L>& s, RowBlock<L>& rows) {
+  using T = lane::scalar_t<L>;
+  const int nv = s.nv, k = s.k, m = rows.m, mc = k * s.slots;
+  for (int i = 0; i < mc; ++i) {
+    const int c = i / k;
+    const int* support = &s.support[c * nv];
+    L* X = &s.X[i * nv];
+    for (int j = 0; j < nv; ++j) X[j] = L(T(0));
+    for (int t = 0; t < s.support_size[c]; ++t) X[support[t]] = s.Z[i * nv + support[t]];
+    ltdl_lower_solve<L>(km, H, reinterpret_cast<T*>(X));
+  }
+  for (int r = 0; r < first; ++r)
+    for (int i = 0; i < mc; ++i)
+      rows.D[r * m + first + i] = rows.D[(first + i) * m + r] = sigma[r] * s.X[i * nv + joint_specs[r].dof];
+}
+
+// s.dv = Mt^-1 J^T x = L^-1 (sum_i x_i Z_i): the velocity change of the
+// contact impulses x (or the displacement of TGS's lambda_sum). Needs
+// contact_delassus.
+template <class L>
+void contact_velocity_change(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, const L* x,
+                             ContactScratch<L>& s) {
+  using T = lane::scalar_t<L>;
+  const int nv = s.nv, k = s.k;
+  L* dv = s.dv.data();
+  for (int j = 0; j < nv; ++j) dv[j] = L(T(0));
+  for (int c = 0; c < s.slots; ++c) {
+    const int* support = &s.support[c * nv];
+    for (int i = c * k; i < (c + 1) * k; ++i)
+      for (int t = 0; t < s.support_size[c]; ++t)
+        dv[support[t]] = lane::fmadd(x[i], s.Z[i * nv + support[t]], dv[support[t]]);
+  }
+  ltdl_lower_solve<L>(km, H, reinterpret_cast<T*>(dv));
+}
+
+// out += Mt^-1 J^T x (contact_velocity_change).
+template <class L>
+void add_contact_impulses(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, const L* x,
+                          ContactScratch<L>& s, L* out) {
+  contact_velocity_change<L>(km, H, x, s);
+  for (int j = 0; j < s.nv; ++j) out[j] = out[j] + s.dv[j];
 }
 
 // The slots, their impulses x (rows [first, ...); zero where `rest`) and

@@ -72,6 +72,20 @@ void ltdl_factor(const KernelModel<lane::scalar_t<L>>& km, lane::scalar_t<L>* H)
   }
 }
 
+// Solves L x = z in place on x (nv per lane), with H from ltdl_factor: the
+// last pass of ltdl_solve, root to leaves.
+template <class L>
+void ltdl_lower_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  for (int k = 0; k < nv; ++k) {
+    L xk = lane::load<L>(x + k * W);
+    for (int i = km.dof_parent[k]; i >= 0; i = km.dof_parent[i])
+      xk = lane::fnmadd(lane::load<L>(H + (k * nv + i) * W), lane::load<L>(x + i * W), xk);
+    lane::store(xk, x + k * W);
+  }
+}
+
 // Solves (L^T D L) x = b in place on x (nv per lane), with H from ltdl_factor.
 template <class L>
 void ltdl_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
@@ -84,11 +98,7 @@ void ltdl_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L
       lane::store(lane::fnmadd(lane::load<L>(at(k, i)), yk, lane::load<L>(x + i * W)), x + i * W);
   }
   for (int k = 0; k < nv; ++k) lane::store(lane::load<L>(x + k * W) / lane::load<L>(at(k, k)), x + k * W);
-  for (int k = 0; k < nv; ++k) {  // L x = z
-    L xk = lane::load<L>(x + k * W);
-    for (int i = km.dof_parent[k]; i >= 0; i = km.dof_parent[i]) xk = lane::fnmadd(lane::load<L>(at(k, i)), lane::load<L>(x + i * W), xk);
-    lane::store(xk, x + k * W);
-  }
+  ltdl_lower_solve<L>(km, H, x);
 }
 
 // M^-1 (nv x nv per lane) from the configuration: CRBA, factorisation, and
