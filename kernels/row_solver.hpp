@@ -146,13 +146,22 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows, int first = 0) {
     const L inv_d = rows.inv_diag[r];
     if (rows.cone[r]) {
       const L inv_d2 = rows.inv_diag[r + 1];
-      const L a = rows.lambda[r] - row_velocity(rows, r, first) * inv_d;
-      const L b = rows.lambda[r + 1] - row_velocity(rows, r + 1, first) * inv_d2;
+      L a = rows.lambda[r] - row_velocity(rows, r, first) * inv_d;
+      L b = rows.lambda[r + 1] - row_velocity(rows, r + 1, first) * inv_d2;
       const L radius = rows.mu[r] * rows.lambda[rows.bound_row[r]];
-      const L length = lane::sqrt(a * a + b * b);
-      const L scale = lane::select(length > radius, radius / lane::max(length, L(std::numeric_limits<T>::min())), L(T(1)));
-      rows.lambda[r] = a * scale;
-      rows.lambda[r + 1] = b * scale;
+      const L square = a * a + b * b;
+      // a block whose lanes all lie well inside their cones (radius^2 with
+      // room for its rounding and the root's) needs no projection: the
+      // root and the division are the sweep's longest waits
+      if (!lane::all<L>(square < radius * radius * L(T(1) - 8 * std::numeric_limits<T>::epsilon()))) {
+        const L length = lane::sqrt(square);
+        const L scale =
+            lane::select(length > radius, radius / lane::max(length, L(std::numeric_limits<T>::min())), L(T(1)));
+        a = a * scale;
+        b = b * scale;
+      }
+      rows.lambda[r] = a;
+      rows.lambda[r + 1] = b;
       ++r;
       continue;
     }
