@@ -208,10 +208,20 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
   };
   s.count = zero;
   s.slots = 0;
+  auto origin = [&](int body) { return body < 0 ? Vec3<L>{zero, zero, zero} : ws.world[body].p; };
   for (const ContactPairSpec<T>& pair : pairs) {
+    const L reach = margin + travel(pair.body_b, pair.reach_b) + (pair.ground ? zero : travel(pair.body_a, pair.reach_a));
+    // first the bodies' origins, each with its shape's reach, before the
+    // shapes' poses: most pairs of a robot are far apart
+    if (pair.ground) {
+      if (lane::all<L>(spatial::dot(plane_n, origin(pair.body_b)) - plane_d - L(pair.reach_b) > reach)) continue;
+    } else {
+      const Vec3<L> d = spatial::sub(origin(pair.body_b), origin(pair.body_a));
+      const L apart = L(pair.reach_a + pair.reach_b) + reach;
+      if (lane::all<L>(spatial::dot(d, d) > apart * apart)) continue;
+    }
     const Transform<L> B = shape_pose<L>(ws, pair.body_b, pair.pose_b);
     Transform<L> A = B;
-    const L reach = margin + travel(pair.body_b, pair.reach_b) + (pair.ground ? zero : travel(pair.body_a, pair.reach_a));
     if (pair.ground) {
       if (lane::all<L>(spatial::dot(plane_n, B.p) - plane_d - L(pair.radius_b) > reach)) continue;
     } else {
