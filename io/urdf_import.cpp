@@ -1,5 +1,7 @@
 #include "io/urdf_import.hpp"
 
+#include "io/mesh_bounds.hpp"
+
 #include <console_bridge/console.h>
 #include <tinyxml2.h>
 #include <urdf_parser/urdf_parser.h>
@@ -148,14 +150,31 @@ std::vector<Shape> read_collisions(const std::string& src, const XMLElement* lin
     } else if (type == "mesh") {
       const char* file = g->Attribute("filename");
       if (!file) throw ModelError(at(src, g) + ": " + describe(link, g) + " is missing attribute filename");
-      shape.type = ShapeType::Mesh;
       if (read_attr(src, link, g, "scale", 3, v)) shape.mesh_scale = Eigen::Vector3d(v[0], v[1], v[2]);
       shape.mesh_path = resolve_mesh(file, base);
+      const std::string mesh_at = at(src, g) + ": link '" + link_name + "': mesh file '" + file + "'";
       if (shape.mesh_path.empty()) {
-        warnings.push_back(at(src, g) + ": link '" + link_name + "': mesh file '" + file +
-                           "' not found; collision geometry skipped");
+        warnings.push_back(mesh_at + " not found; collision geometry skipped");
         continue;
       }
+      // The mesh becomes the box that bounds its scaled vertices in the mesh
+      // frame; path and scale stay on the shape to say where it came from.
+      Eigen::AlignedBox3d bounds;
+      try {
+        bounds = mesh_bounds(shape.mesh_path, shape.mesh_scale);
+      } catch (const MeshFileError& e) {
+        const std::string resolved = shape.mesh_path != file ? " (" + shape.mesh_path + ")" : "";
+        warnings.push_back(mesh_at + resolved + ": " + e.what() + "; collision geometry skipped");
+        continue;
+      }
+      const Eigen::Vector3d sizes = bounds.sizes(), centre = bounds.center();
+      shape.type = ShapeType::Box;
+      shape.size = 0.5 * sizes;
+      shape.pose = shape.pose * Eigen::Translation3d(centre);
+      std::ostringstream fitted;
+      fitted << mesh_at << " fitted with a box " << sizes.x() << " x " << sizes.y() << " x " << sizes.z()
+             << " m centred at (" << centre.x() << ", " << centre.y() << ", " << centre.z() << ") in the mesh frame";
+      warnings.push_back(fitted.str());
     } else {
       warnings.push_back(at(src, g) + ": link '" + link_name + "': unsupported collision geometry <" + type +
                          ">; skipped");

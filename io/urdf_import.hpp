@@ -4,7 +4,7 @@
 // joints (revolute, continuous = unlimited revolute, prismatic, fixed) with
 // origin, axis, limits (position, velocity, effort), dynamics (damping,
 // friction) and mimic tags, and collision geometry (box, sphere, cylinder,
-// `<capsule radius length>` and meshes by path and scale). Visual elements,
+// `<capsule radius length>` and meshes, fitted with boxes). Visual elements,
 // gazebo/transmission/sensor tags and `<calibration>`/`<safety_controller>`
 // are ignored.
 //
@@ -18,7 +18,10 @@
 // - Meshes: relative paths are resolved against the URDF's folder,
 //   `package://pkg/rest` by searching upward from it for a folder `pkg`.
 //   A missing mesh file is a warning naming link and file, and only that
-//   collision element is skipped.
+//   collision element is skipped. A mesh file that is there becomes the box
+//   bounding its scaled vertices (io/mesh_bounds.hpp, docs/contacts.md), with
+//   a warning giving the box; one that cannot be read is skipped with a
+//   warning giving the reason.
 // - Limits written as placeholders are read as "no limit", with a warning
 //   naming the joint: lower == upper == 0 on a revolute/prismatic joint
 //   (position), and velocity="0" or effort="0".
@@ -45,8 +48,8 @@ struct UrdfOptions {
   Eigen::Isometry3d root_pose = Eigen::Isometry3d::Identity();
 };
 
-// Reads `path`; warnings (missing meshes, placeholder limits) are appended to
-// `warnings` when given.
+// Reads `path`; warnings (meshes missing, unreadable or fitted with boxes,
+// placeholder limits) are appended to `warnings` when given.
 ArticulationSpec urdf_articulation_from_file(const std::string& path, const UrdfOptions& options = {},
                                              std::vector<std::string>* warnings = nullptr);
 

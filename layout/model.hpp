@@ -33,7 +33,7 @@ struct Shape {
   int frame = -1;                   // the URDF link it was declared on
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // in the body frame
   Eigen::Vector3d size = Eigen::Vector3d::Zero();  // sphere (r,0,0); box half extents; cylinder/capsule (r, half length, 0)
-  std::string mesh_path;            // Mesh only
+  std::string mesh_path;            // Mesh, or a Box fitted to the mesh file by the URDF importer
   Eigen::Vector3d mesh_scale = Eigen::Vector3d::Ones();
 };
 

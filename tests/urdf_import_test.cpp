@@ -149,8 +149,10 @@ TEST(UrdfImport, CollisionPrimitivesAndMeshes) {
   const fs::path dir = fs::temp_directory_path() / "lockstep_urdf_test" / "mypkg";
   fs::create_directories(dir / "urdf");
   fs::create_directories(dir / "meshes");
-  std::ofstream(dir / "meshes" / "part.stl") << "solid x\nendsolid x\n";
-  std::ofstream(dir / "urdf" / "near.stl") << "solid x\nendsolid x\n";
+  // one triangle: (0, 0, 0), (1, 0, 0), (0, 1, 0.5)
+  const char* stl = "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0.5\nendloop\nendfacet\nendsolid x\n";
+  std::ofstream(dir / "meshes" / "part.stl") << stl;
+  std::ofstream(dir / "urdf" / "near.stl") << stl;
   const std::string body = std::string(kInertial) + R"(
     <collision><origin xyz="0 0 0.1" rpy="0 0 0"/><geometry><box size="0.2 0.4 0.6"/></geometry></collision>
     <collision><geometry><sphere radius="0.05"/></geometry></collision>
@@ -175,13 +177,17 @@ TEST(UrdfImport, CollisionPrimitivesAndMeshes) {
   EXPECT_EQ(s[2].size, Eigen::Vector3d(0.03, 0.25, 0.0));
   EXPECT_EQ(s[3].type, ShapeType::Capsule);
   EXPECT_EQ(s[3].size, Eigen::Vector3d(0.02, 0.15, 0.0));
-  EXPECT_EQ(s[4].type, ShapeType::Mesh);
+  // meshes whose file exists become fitted boxes (tests/mesh_fit_test.cpp), each with a warning
+  EXPECT_EQ(s[4].type, ShapeType::Box);
+  EXPECT_EQ(s[4].size, Eigen::Vector3d(1, 1, 0.5));
   EXPECT_TRUE(fs::equivalent(s[4].mesh_path, dir / "meshes" / "part.stl"));
   EXPECT_EQ(s[4].mesh_scale, Eigen::Vector3d(2, 2, 2));
   EXPECT_TRUE(fs::equivalent(s[5].mesh_path, dir / "urdf" / "near.stl"));
-  ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_NE(warnings[0].find("link 'base'"), std::string::npos);
-  EXPECT_NE(warnings[0].find("missing.stl"), std::string::npos);
+  ASSERT_EQ(warnings.size(), 3u);
+  EXPECT_NE(warnings[0].find("part.stl' fitted with a box"), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[1].find("near.stl' fitted with a box"), std::string::npos) << warnings[1];
+  EXPECT_NE(warnings[2].find("link 'base'"), std::string::npos);
+  EXPECT_NE(warnings[2].find("missing.stl"), std::string::npos);
   fs::remove_all(dir.parent_path());
 }
 

@@ -122,7 +122,7 @@ std::string prepare_urdf(const MujocoScene& scene, std::vector<std::string>& not
   if (scene.ground) {
     const int kept = count_collisions(robot);
     notes.push_back("removed " + std::to_string(visuals) + " <visual> and " + std::to_string(meshes) +
-                    " mesh <collision> elements (mesh collisions are not simulated: " +
+                    " mesh <collision> elements (MuJoCo gets no mesh collisions; lockstep fits a box to a mesh whose file exists: " +
                     (kept > 0 ? "the robot touches the ground only through its " + std::to_string(kept) +
                                     " remaining primitive <collision> shapes, spheres, boxes and cylinders)"
                               : std::string("no <collision> shape is left, nothing touches the ground)")));
