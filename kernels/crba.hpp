@@ -8,11 +8,13 @@
 
 namespace lockstep {
 
+// The entries of M between a DOF and itself or its tree ancestors (both
+// triangles), all that ltdl_factor reads; the others are left as they were.
 // Needs ws.local. M_out: (nv x nv) per lane, row-major, armature on the
-// diagonal; entries between DOFs on different branches are zero.
+// diagonal.
 template <class L>
-void crba(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* inertia, Workspace<L>& ws,
-          lane::scalar_t<L>* M_out) {
+void crba_tree(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* inertia, Workspace<L>& ws,
+               lane::scalar_t<L>* M_out) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
   for (int b = 0; b < km.nbody; ++b) ws.inertia[b] = rigid_inertia(load_body_inertia<L>(inertia, b));
@@ -21,7 +23,6 @@ void crba(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* ine
     const int parent = km.body_parent[b];
     if (parent >= 0) spatial::add_to(ws.inertia[parent], spatial::inertia_to_parent(ws.local[b], ws.inertia[b]));
   }
-  for (int k = 0; k < nv * nv; ++k) lane::store(L(0), M_out + k * W);
   auto M = [&](int r, int c) { return M_out + (r * nv + c) * W; };
   for (int b = 0; b < km.nbody; ++b) {
     int axes[6];
@@ -51,6 +52,16 @@ void crba(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* ine
         }
     }
   }
+}
+
+// Needs ws.local. M_out: (nv x nv) per lane, row-major, armature on the
+// diagonal; entries between DOFs on different branches are zero.
+template <class L>
+void crba(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* inertia, Workspace<L>& ws,
+          lane::scalar_t<L>* M_out) {
+  constexpr std::size_t W = lane::width_v<L>;
+  for (int k = 0; k < km.nv * km.nv; ++k) lane::store(L(0), M_out + k * W);
+  crba_tree<L>(km, inertia, ws, M_out);
 }
 
 // In place: M (nv x nv per lane, as crba writes it) becomes its L^T D L

@@ -141,7 +141,7 @@ void factor_step_mass_matrix(const KernelModel<lane::scalar_t<L>>& km, const lan
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   T* H = reinterpret_cast<T*>(ws.matrix.data());
-  crba<L>(km, inertia, ws, H);
+  crba_tree<L>(km, inertia, ws, H);
   for (int k = 0; k < km.nv; ++k) {
     T* Hkk = H + (k * km.nv + k) * W;
     lane::store(lane::load<L>(Hkk) + implicit_diagonal[k], Hkk);
