@@ -343,26 +343,6 @@ lane::mask_t<L> contact_rows_at_rest(const RowBlock<L>& rows, int first, const C
   return rest;
 }
 
-namespace contact_detail {
-
-// x <- L^-T x, x zero outside `dofs` (ascending, closed under dof_parent):
-// ltdl_solve's first pass, leaves to root, on those DOFs only (the others
-// stay zero).
-template <class L>
-void transpose_solve_on(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, L* x, const int* dofs,
-                        int n) {
-  constexpr std::size_t W = lane::width_v<L>;
-  const int nv = km.nv;
-  for (int i = n - 1; i >= 0; --i) {
-    const int k = dofs[i];
-    const L xk = x[k];
-    for (int a = km.dof_parent[k]; a >= 0; a = km.dof_parent[a])
-      x[a] = lane::fnmadd(lane::load<L>(H + (k * nv + a) * W), xk, x[a]);
-  }
-}
-
-}  // namespace contact_detail
-
 // The contact rows' block of D = J Mt^-1 J^T, with Mt factored in H as
 // L^T Dg L (factor_step_mass_matrix): Y = L^-T J^T and Z = Dg^-1 Y per row,
 // D_ij = Z_i . Y_j. A row's J is zero outside the DOFs that move its
@@ -391,7 +371,7 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
       L* Y = &s.Y[i * nv];
       L* Z = &s.Z[i * nv];
       for (int t = 0; t < n; ++t) Y[support[t]] = s.J[i * nv + support[t]];
-      contact_detail::transpose_solve_on<L>(km, H, Y, support, n);
+      ltdl_transpose_solve<L>(km, H, reinterpret_cast<T*>(Y), support, n);
       for (int t = 0; t < n; ++t) Z[support[t]] = Y[support[t]] * s.inv_dg[support[t]];
     }
   }

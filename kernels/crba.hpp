@@ -97,18 +97,31 @@ void ltdl_lower_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scal
   }
 }
 
+// Solves L^T y = b in place on x (nv per lane), with H from ltdl_factor:
+// the first pass of ltdl_solve, leaves to root. With `dofs` (n of them,
+// ascending, closed under dof_parent), b is zero outside them and the pass
+// touches only them (the others stay zero); without, every DOF.
+template <class L>
+void ltdl_transpose_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x,
+                          const int* dofs = nullptr, int n = -1) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  if (!dofs) n = nv;
+  for (int i = n - 1; i >= 0; --i) {
+    const int k = dofs ? dofs[i] : i;
+    const L yk = lane::load<L>(x + k * W);
+    for (int a = km.dof_parent[k]; a >= 0; a = km.dof_parent[a])
+      lane::store(lane::fnmadd(lane::load<L>(H + (k * nv + a) * W), yk, lane::load<L>(x + a * W)), x + a * W);
+  }
+}
+
 // Solves (L^T D L) x = b in place on x (nv per lane), with H from ltdl_factor.
 template <class L>
 void ltdl_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
-  auto at = [&](int r, int c) { return H + (r * nv + c) * W; };
-  for (int k = nv - 1; k >= 0; --k) {  // L^T y = b
-    const L yk = lane::load<L>(x + k * W);
-    for (int i = km.dof_parent[k]; i >= 0; i = km.dof_parent[i])
-      lane::store(lane::fnmadd(lane::load<L>(at(k, i)), yk, lane::load<L>(x + i * W)), x + i * W);
-  }
-  for (int k = 0; k < nv; ++k) lane::store(lane::load<L>(x + k * W) / lane::load<L>(at(k, k)), x + k * W);
+  ltdl_transpose_solve<L>(km, H, x);
+  for (int k = 0; k < nv; ++k) lane::store(lane::load<L>(x + k * W) / lane::load<L>(H + (k * nv + k) * W), x + k * W);
   ltdl_lower_solve<L>(km, H, x);
 }
 
