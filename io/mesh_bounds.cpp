@@ -1,10 +1,11 @@
 #include "io/mesh_bounds.hpp"
 
+#include "io/number_text.hpp"
+
 #include <tinyxml2.h>
 
 #include <algorithm>
 #include <cctype>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -41,12 +42,9 @@ class Words {
   double number(const std::string& where) {
     std::string_view w = next();
     if (w.empty()) throw MeshFileError(where + ": a number is missing");
-    const std::string_view word = w;
-    if (w.front() == '+') w.remove_prefix(1);  // from_chars takes no '+'
     double x = 0;
-    const auto [end, ec] = std::from_chars(w.data(), w.data() + w.size(), x);
-    if (ec != std::errc() || end != w.data() + w.size())
-      throw MeshFileError(where + ": '" + std::string(word) + "' is not a number");
+    const std::string why = parse_number(w, x);
+    if (!why.empty()) throw MeshFileError(where + ": '" + std::string(w) + "': " + why);
     return x;
   }
 

@@ -1,12 +1,12 @@
 #include "io/urdf_import.hpp"
 
 #include "io/mesh_bounds.hpp"
+#include "io/number_text.hpp"
 
 #include <console_bridge/console.h>
 #include <tinyxml2.h>
 #include <urdf_parser/urdf_parser.h>
 
-#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -43,12 +43,12 @@ std::string parse_numbers(const char* text, int count, double* out) {
   for (int k = 0; k < count; ++k) {
     while (p < end && std::isspace(static_cast<unsigned char>(*p))) ++p;
     if (p == end) return "expected " + std::to_string(count) + " numbers";
-    if (*p == '+') ++p;
-    const auto [next, ec] = std::from_chars(p, end, out[k]);
-    if (ec == std::errc::result_out_of_range) return "number out of range";
-    if (ec != std::errc() || (next < end && !std::isspace(static_cast<unsigned char>(*next)))) return "not a number";
+    const char* word_end = p;
+    while (word_end < end && !std::isspace(static_cast<unsigned char>(*word_end))) ++word_end;
+    const std::string why = parse_number(std::string_view(p, static_cast<std::size_t>(word_end - p)), out[k]);
+    if (!why.empty()) return why;
     if (!std::isfinite(out[k])) return "not a finite number";
-    p = next;
+    p = word_end;
   }
   while (p < end && std::isspace(static_cast<unsigned char>(*p))) ++p;
   if (p != end) return "expected " + std::to_string(count) + " numbers";
