@@ -219,6 +219,14 @@ StepProfile StepEngine<L>::profile() const {
   return sum;
 }
 
+// The gyroscopic force at the middle of the step (implicit midpoint:
+// Jacobian weight h/2). RK4 evaluates the plain equations of motion at its
+// stages: explicit.
+template <class L>
+lane::scalar_t<L> StepEngine<L>::gyroscopic_weight(T h) const {
+  return options_.implicit_gyroscopic && options_.integrator != Integrator::RK4 ? T(0.5) * h : T(0);
+}
+
 template <class L>
 void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
                                       JointTermInputs<T> terms_in, Scratch& s) {
@@ -230,11 +238,7 @@ void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockIn
   BlockInputs<T> at = in;
   at.q = q;
   at.v = v;
-  // The gyroscopic force at the middle of the step (implicit midpoint:
-  // Jacobian weight h/2). RK4 evaluates the plain equations of motion at
-  // its stages: explicit.
-  const T gyroscopic = options_.implicit_gyroscopic && options_.integrator != Integrator::RK4 ? T(0.5) * h : T(0);
-  StepJointTerms<L> terms{jm_, s.terms, tau_ff, terms_in.armature, gyroscopic};
+  StepJointTerms<L> terms{jm_, s.terms, tau_ff, terms_in.armature, gyroscopic_weight(h)};
   aba_with<L>(km_, at, terms, s.ws, fields(s.qacc));
 }
 
@@ -275,7 +279,10 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
     s.clock.lap(&StepProfile::dynamics);
   } else {
     free_acceleration(q, v, h, in, tau_ff, terms_in, s);
+    // u1 with the Free joints' linear velocities in the frame at the start of
+    // the step (add_frame_turn_rate); back into the body frame at the end.
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(h), s.qacc[k], s.u0[k]);
+    add_frame_turn_rate<L>(km_, v, fields(s.qacc), gyroscopic_weight(h), h, fields(s.u1));
     const bool trapezoid = options_.integrator == Integrator::Trapezoid;
     if (trapezoid) heun_velocity(in, tau_ff, terms_in, q, h, s);
     const bool tgs = options_.solver == SolverType::TGS;
@@ -298,20 +305,10 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
       store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
                         contact_arrays(block));
     s.clock.lap(&StepProfile::constraint_solve);
-    // positions: TGS by its substep displacement; otherwise by the
-    // integrator's velocity: semi-implicit Euler v1; trapezoid (v0 + v1)/2,
-    // except in copies whose rows act this step, which move with v1 so that
-    // the speculative limit rows hold exactly.
-    T* velocity = fields(s.qacc);  // free again: reused as the position velocity
-    T step = h;
-    for (int k = 0; k < nv; ++k) {
-      L u = s.u1[k];
-      if (tgs) u = s.displacement[k];
-      else if (trapezoid) u = lane::select(s.rows_at_rest, L(T(0.5)) * (s.u0[k] + s.u1[k]), s.u1[k]);
-      lane::store(u, velocity + k * W);
-    }
-    if (tgs) step = T(1);
+    T* velocity = fields(s.qacc);  // free again: the position velocity
+    const T step = position_velocity(s, h, velocity);
     integrate<L>(km_, q, velocity, step, q_next);
+    turn_free_linear<L>(km_, velocity, step, fields(s.u1), Turn::ToEnd);
   }
   if (options_.record_applied_torque) record_applied(block, h, s);
 
@@ -347,6 +344,24 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   s.clock.lap(&StepProfile::integration);
 }
 
+// Positions move by velocity * step: TGS by its substep displacement;
+// otherwise by the integrator's velocity: semi-implicit Euler v1; trapezoid
+// (v0 + v1)/2, except in copies whose rows act this step, which move with v1
+// so that the speculative limit rows hold exactly.
+template <class L>
+lane::scalar_t<L> StepEngine<L>::position_velocity(const Scratch& s, T h, T* velocity) const {
+  constexpr std::size_t W = lane::width_v<L>;
+  const bool tgs = options_.solver == SolverType::TGS;
+  const bool trapezoid = options_.integrator == Integrator::Trapezoid;
+  for (int k = 0; k < km_.nv; ++k) {
+    L u = s.u1[k];
+    if (tgs) u = s.displacement[k];
+    else if (trapezoid) u = lane::select(s.rows_at_rest, L(T(0.5)) * (s.u0[k] + s.u1[k]), s.u1[k]);
+    lane::store(u, velocity + k * W);
+  }
+  return tgs ? T(1) : h;
+}
+
 // The trapezoidal rule's velocity, explicit (Heun): the acceleration a1 at
 // (q0, v0) is in s.qacc and v0 + h a1 in s.u1; a2 at the Euler predictor
 // (q0 (+) h v0, v0 + h a1) joins it, v1 = v0 + h (a1 + a2) / 2. With
@@ -356,6 +371,8 @@ void StepEngine<L>::heun_velocity(const BlockInputs<T>& in, const T* tau_ff, con
                                   const T* q0, T h, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km_.nv;
+  // Both accelerations are taken as the Free joints' classical accelerations
+  // in the frame at the start of the step, like s.u1 (add_frame_turn_rate).
   T* a1 = fields(s.a_sum);
   T* q_predicted = fields(s.q_stage);
   T* v_predicted = fields(s.v_stage);
@@ -363,8 +380,13 @@ void StepEngine<L>::heun_velocity(const BlockInputs<T>& in, const T* tau_ff, con
     lane::store(s.qacc[k], a1 + k * W);
     lane::store(s.u1[k], v_predicted + k * W);
   }
+  add_frame_turn_rate<L>(km_, terms_in.v, a1, gyroscopic_weight(h), T(1), a1);
   integrate<L>(km_, q0, terms_in.v, h, q_predicted);
+  turn_free_linear<L>(km_, terms_in.v, h, v_predicted, Turn::ToEnd);
   free_acceleration(q_predicted, v_predicted, h, in, tau_ff, terms_in, s);
+  T* a2 = fields(s.qacc);
+  add_frame_turn_rate<L>(km_, v_predicted, a2, gyroscopic_weight(h), T(1), a2);
+  turn_free_linear<L>(km_, terms_in.v, h, a2, Turn::ToStart);
   const L half_h(T(0.5) * h);
   for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(half_h, lane::load<L>(a1 + k * W) + s.qacc[k], s.u0[k]);
 }
@@ -390,12 +412,19 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
   }
   const T fractions[3] = {T(0.5) * h, T(0.5) * h, h};
   const T weights[3] = {T(2), T(2), T(1)};
+  T* previous = fields(s.u_free);  // the velocity q moved with to this stage
+  for (int k = 0; k < nv; ++k) lane::store(s.u0[k], previous + k * W);
   for (int stage = 0; stage < 3; ++stage) {
     const T c = fractions[stage];
     // q at the stage from the previous stage's velocity, then v likewise
-    integrate<L>(km_, q0, stage == 0 ? v0 : vs, c, qs);
+    integrate<L>(km_, q0, previous, c, qs);
     for (int k = 0; k < nv; ++k) lane::store(lane::fmadd(L(c), s.qacc[k], s.u0[k]), vs + k * W);
     free_acceleration(qs, vs, h, in, tau_ff, terms_in, s);
+    // The positions move with the world velocities of the stages, R_s v_s,
+    // expressed at q0 (turn_free_linear): the velocities themselves are
+    // integrated in body coordinates, where the accelerations are.
+    turn_free_linear<L>(km_, previous, c, vs, Turn::ToStart);
+    for (int k = 0; k < nv; ++k) lane::store(lane::load<L>(vs + k * W), previous + k * W);
     const L w(weights[stage]);
     for (int k = 0; k < nv; ++k) {
       lane::store(lane::fmadd(w, lane::load<L>(vs + k * W), lane::load<L>(vsum + k * W)), vsum + k * W);

@@ -97,6 +97,7 @@ class StepEngine final : public Simulator::Engine {
 
   static T* fields(std::vector<L>& lanes) { return reinterpret_cast<T*>(lanes.data()); }
   void step_block(int block, T h, Scratch& s);
+  T gyroscopic_weight(T h) const;
   // ABA with the joint effects at (q, v): s.qacc. Needs nothing prepared.
   void free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
                          JointTermInputs<T> terms_in, Scratch& s);
@@ -106,6 +107,8 @@ class StepEngine final : public Simulator::Engine {
   // Trapezoid: s.u1 from v0 + h a1 to the average of two accelerations.
   void heun_velocity(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in, const T* q0, T h,
                      Scratch& s);
+  // The velocity the positions move with, into velocity; returns its step.
+  T position_velocity(const Scratch& s, T h, T* velocity) const;
   // Solver rows (joint rows, then the contacts found): s.u1 from s.u1
   // (= u*), and the displacement for TGS.
   void solve_rows(int block, const T* q, T h, Scratch& s);

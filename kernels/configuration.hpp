@@ -68,7 +68,8 @@ inline void store_normalized(const Quaternion<L>& q, lane::scalar_t<L>* out) {
 
 // q_out = q (+) v dt: 1-DOF joints add, a Spherical joint turns its quaternion
 // by exp(w dt) on the right (w in the body frame), a Free joint moves by
-// R v_lin dt and turns likewise. Quaternions are renormalised. q_out may be q.
+// R v_lin dt (R at q) and turns likewise. Quaternions are renormalised. q_out
+// may be q.
 template <class L>
 void integrate(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* q, const lane::scalar_t<L>* v,
                lane::scalar_t<L> dt, lane::scalar_t<L>* q_out) {
@@ -105,6 +106,72 @@ void integrate(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>
       case JointType::Fixed:
         break;
     }
+  }
+}
+
+// A Free joint's velocity is (v, w) in its body frame: the linear velocity
+// of the body origin turns with the body. The step integrates it in the frame
+// the body has at the start of the step, where it changes only by the
+// origin's classical acceleration a + w x v (a: the body-coordinate
+// derivative that ABA gives), so a body without force keeps its world
+// velocity and a world force adds h F / m, both to round-off:
+//   u = v0 + h (a + w x v)   (add_frame_turn_rate on v0 + h a)
+// with w x v taken as ABA took the velocity-product force w x p of the
+// body's linear rows: at v0, or linearised about v0 with weight g (the
+// implicit gyroscopic force, gyroscopic_jacobian), w0 x v0 + g (dw x v0 +
+// w0 x dv), dv = h a. The solver rows (Jacobian and impulses at q0) act on u,
+// positions move by R0 u h, and the new state's velocity is D^T u with
+// D = exp(h w) the body's turn in the step (turn_free_linear, ToEnd).
+// Impulses therefore keep momentum through the turn, and a spinning ball
+// flies straight.
+
+// x's Free-joint linear parts += scale (w x v + g h (alpha x v + w x a)),
+// with (v, w) from v and (a, alpha) from a; g h = weight_h.
+template <class L>
+void add_frame_turn_rate(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* v,
+                         const lane::scalar_t<L>* a, lane::scalar_t<L> weight_h, lane::scalar_t<L> scale,
+                         lane::scalar_t<L>* x) {
+  constexpr std::size_t W = lane::width_v<L>;
+  auto load3 = [](const lane::scalar_t<L>* p) -> Vec3<L> {
+    return {lane::load<L>(p), lane::load<L>(p + W), lane::load<L>(p + 2 * W)};
+  };
+  for (int b = 0; b < km.nbody; ++b) {
+    if (km.body_joint[b] != JointType::Free) continue;
+    const int o = km.body_dof_offset[b] * W;
+    const Vec3<L> lin = load3(v + o), w = load3(v + o + 3 * W);
+    const Vec3<L> dlin = load3(a + o), dw = load3(a + o + 3 * W);
+    const Vec3<L> change = spatial::add(spatial::cross(dw, lin), spatial::cross(w, dlin));
+    const Vec3<L> rate = spatial::add(spatial::cross(w, lin), spatial::scale(L(weight_h), change));
+    const Vec3<L> sum = spatial::add(load3(x + o), spatial::scale(L(scale), rate));
+    lane::store(sum.x, x + o);
+    lane::store(sum.y, x + o + W);
+    lane::store(sum.z, x + o + 2 * W);
+  }
+}
+
+// The body turns by D = exp(step w) in integrate(q, velocity, step), w the
+// angular part of velocity. A vector x in body coordinates at one end of
+// that turn is the same world vector as D x (ToStart) or D^T x (ToEnd) at
+// the other; only the Free joints' linear parts are turned.
+enum class Turn { ToStart, ToEnd };
+
+template <class L>
+void turn_free_linear(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* velocity,
+                      lane::scalar_t<L> step, lane::scalar_t<L>* x, Turn turn) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const L h(step);
+  for (int b = 0; b < km.nbody; ++b) {
+    if (km.body_joint[b] != JointType::Free) continue;
+    const int o = km.body_dof_offset[b] * W;
+    const Vec3<L> w = {lane::load<L>(velocity + o + 3 * W) * h, lane::load<L>(velocity + o + 4 * W) * h,
+                       lane::load<L>(velocity + o + 5 * W) * h};
+    const Quaternion<L> d = quaternion_exp(w);
+    const Mat3<L> D = quaternion_rotation(d.w, d.x, d.y, d.z);
+    const Vec3<L> in = {lane::load<L>(x + o), lane::load<L>(x + o + W), lane::load<L>(x + o + 2 * W)};
+    const Vec3<L> out = turn == Turn::ToStart ? spatial::rotate(D, in) : spatial::rotate_back(D, in);
+    lane::store(out.x, x + o);
+    lane::store(out.y, x + o + W);
+    lane::store(out.z, x + o + 2 * W);
   }
 }
 
