@@ -159,36 +159,73 @@ TEST_P(ContactPrecision, DepenetrationIsCappedAndNothingFlies) {
 
 // Without gravity a free ball hits a free-floating anymal_b (joints
 // passive, at rest): in the step whose contact impulses first act, nothing
-// else changes the momentum (the robot is at rest and the ball does not
-// spin), and the total linear momentum sum m_b v_com_b, at that step's
-// configuration, is kept to 1e-6 relative in double: the impulses are
-// equal and opposite through the row Jacobian J_B - J_A (measured: 1e-16).
-// Float: 1e-5, the rounding of float velocities of 14 bodies. (Over the
-// whole collision the trajectory drifts by O(dt) more, 7e-4 at dt = 2 ms:
-// the free bodies' body-frame linear velocity carried through the step's
-// rotation; docs/contacts.md.)
-TEST_P(ContactPrecision, CollisionImpulsesKeepLinearMomentum) {
-  ModelBuilder builder;
-  builder.set_gravity(Eigen::Vector3d::Zero());
-  UrdfOptions floating;
-  floating.floating_base = true;
-  add_urdf(builder, shared_model_path("anymal_b"), floating);
-  builder.add_articulation(free_shape_spec("ball", ShapeType::Sphere, Eigen::Vector3d(0.1, 0, 0), 2.0));
-  const Model model = builder.finalize();
-  StepOptions o = contact_options(GetParam());
-  o.contacts.ground = false;
-  Simulator sim(model, 1, o);
-  Eigen::VectorXd q = model.neutral_configuration(), v = Eigen::VectorXd::Zero(model.nv);
-  const int ball = model.joint_index("ball_root");
-  q.segment<3>(model.body_q_offset[ball]) = Eigen::Vector3d(0.6, 0.0, 0.0);  // in front of the base
-  v[model.body_dof_offset[ball]] = -3.0;                                      // flying at it
-  sim.set_state(0, q, v);
-  const CopyDynamics dynamics(model);
-  auto momentum = [&](const Eigen::VectorXd& at, const Eigen::VectorXd& velocity) {
+// else changes the momentum (the robot is at rest), and the total linear
+// momentum sum m_b v_com_b at that step's configuration is kept to
+// 1e-6 relative in double: the impulses are equal and opposite through the
+// row Jacobian J_B - J_A (measured: 1e-16). Float: 1e-5, the rounding of
+// float velocities of 14 bodies. The solver acts on the Free joints' linear
+// velocities in the frame at the start of the step, and the new state holds
+// them in the frame at its end (add_frame_turn_rate): the test turns them
+// back by R0^T R1 to compare at the step's configuration. Over the whole
+// collision the momentum drifts by a first-order amount more (measured
+// below): the legs move with the post-impact velocity before the next step's
+// Coriolis forces answer it, which no first-order integrator in joint
+// coordinates avoids; the ball alone keeps its momentum exactly in flight.
+Eigen::VectorXd start_frame_velocity(const Model& model, const Eigen::VectorXd& q0, const Eigen::VectorXd& q1,
+                                     Eigen::VectorXd v1) {
+  for (int b = 0; b < model.nbody; ++b) {
+    if (model.body_joint[b] != JointType::Free) continue;
+    auto rotation = [&](const Eigen::VectorXd& q) {
+      const int o = model.body_q_offset[b] + 3;
+      return Eigen::Quaterniond(q[o], q[o + 1], q[o + 2], q[o + 3]).normalized();
+    };
+    const int d = model.body_dof_offset[b];
+    v1.segment<3>(d) = rotation(q0).inverse() * (rotation(q1) * Eigen::Vector3d(v1.segment<3>(d)));
+  }
+  return v1;
+}
+
+// A 2 kg ball flying at 3 m/s at a free-floating anymal_b, without gravity.
+struct BallAndRobot {
+  Model model;
+  Simulator sim;
+  CopyDynamics dynamics;
+  BallAndRobot(Precision precision, double dt) : model(build()), sim(model, 1, options(precision, dt)), dynamics(model) {
+    Eigen::VectorXd q = model.neutral_configuration(), v = Eigen::VectorXd::Zero(model.nv);
+    const int ball = model.joint_index("ball_root");
+    q.segment<3>(model.body_q_offset[ball]) = Eigen::Vector3d(0.6, 0.0, 0.0);  // in front of the base
+    v[model.body_dof_offset[ball]] = -3.0;                                      // flying at it
+    sim.set_state(0, q, v);
+  }
+  static Model build() {
+    ModelBuilder builder;
+    builder.set_gravity(Eigen::Vector3d::Zero());
+    UrdfOptions floating;
+    floating.floating_base = true;
+    add_urdf(builder, shared_model_path("anymal_b"), floating);
+    builder.add_articulation(free_shape_spec("ball", ShapeType::Sphere, Eigen::Vector3d(0.1, 0, 0), 2.0));
+    return builder.finalize();
+  }
+  static StepOptions options(Precision precision, double dt) {
+    StepOptions o = contact_options(precision);
+    o.contacts.ground = false;
+    o.dt = dt;
+    return o;
+  }
+  Eigen::Vector3d momentum(const Eigen::VectorXd& at, const Eigen::VectorXd& velocity) const {
     const Eigen::MatrixXd J = dynamics.com_jacobian(at);
     Eigen::Vector3d p = Eigen::Vector3d::Zero();
     for (int b = 0; b < model.nbody; ++b) p += model.body_mass[b] * J.middleRows(6 * b, 3) * velocity;
     return p;
+  }
+};
+
+TEST_P(ContactPrecision, CollisionImpulsesKeepLinearMomentum) {
+  BallAndRobot scene(GetParam(), 2e-3);
+  const Model& model = scene.model;
+  Simulator& sim = scene.sim;
+  auto momentum = [&](const Eigen::VectorXd& at, const Eigen::VectorXd& velocity) {
+    return scene.momentum(at, velocity);
   };
   bool hit = false;
   for (int i = 0; i < 100 && !hit; ++i) {
@@ -196,12 +233,39 @@ TEST_P(ContactPrecision, CollisionImpulsesKeepLinearMomentum) {
     sim.step();
     for (const Contact& c : sim.contacts(0)) hit = hit || c.force.norm() > 0;
     if (!hit) continue;
-    const Eigen::Vector3d p0 = momentum(q0, v0), p1 = momentum(q0, sim.v(0));
+    const Eigen::Vector3d p0 = momentum(q0, v0), p1 = momentum(q0, start_frame_velocity(model, q0, sim.q(0), sim.v(0)));
     const double tolerance = GetParam() == Precision::Double ? 1e-6 : 1e-5;
     EXPECT_LT((p1 - p0).norm(), tolerance * p0.norm());
     EXPECT_GT((sim.v(0) - v0).norm(), 0.1) << "the impact changes the velocities";
   }
   EXPECT_TRUE(hit) << "the ball never reached the robot";
+}
+
+// The whole collision, 0.3 s of it (the ball bounces off within 40 ms), in
+// double: the momentum drift (see above) is first order in dt. Measured:
+// 4.5e-4 of |p0| at dt = 2 ms, 2.3e-4 at 1 ms (before the Free joints'
+// velocities were integrated in the start-of-step frame: 2.6e-3 at 2 ms,
+// most of it the spinning ball's). Asserted: below 1e-3 at 2 ms, and
+// halving dt divides it by 1.6 to 2.4.
+TEST(ContactMomentum, CollisionMomentumDriftIsFirstOrderInDt) {
+  auto drift = [](double dt) {
+    BallAndRobot scene(Precision::Double, dt);
+    const Eigen::Vector3d p0 = scene.momentum(scene.sim.q(0), scene.sim.v(0));
+    bool hit = false;
+    for (int i = 0; i < static_cast<int>(std::lround(0.3 / dt)); ++i) {
+      scene.sim.step();
+      for (const Contact& c : scene.sim.contacts(0)) hit = hit || c.force.norm() > 0;
+    }
+    EXPECT_TRUE(hit) << "the ball never reached the robot at dt " << dt;
+    return (scene.momentum(scene.sim.q(0), scene.sim.v(0)) - p0).norm() / p0.norm();
+  };
+  const double coarse = drift(2e-3), fine = drift(1e-3);
+  RecordProperty("drift_2ms", std::to_string(coarse));
+  RecordProperty("drift_1ms", std::to_string(fine));
+  std::cout << "[ measured ] momentum drift over the collision: " << coarse << " (dt 2 ms), " << fine << " (1 ms)\n";
+  EXPECT_LT(coarse, 1e-3);
+  EXPECT_GT(coarse / fine, 1.6);
+  EXPECT_LT(coarse / fine, 2.4);
 }
 
 INSTANTIATE_TEST_SUITE_P(, ContactPrecision, ::testing::Values(Precision::Float, Precision::Double),

@@ -49,14 +49,19 @@ ArticulationSpec finger_spec() {
 struct FingerResult {
   bool held = false;
   double worst_limit = 0, worst_penetration = 0, fastest_box = 0;
+  int steps_not_pinned = 0;  // steps without force both from the tip and from the wall on the box
 };
 
 // The finger's proximal drive (kp 100 N m/rad: the target is reached
 // within one 1/60 s step without the box, kp h^2 / I = 28) targets 1.0 rad;
-// the tip meets the 50 g box at 0.06 rad and pushes it against the wall;
-// the distal joint folds to its limit -0.5 rad. After 1 s and for the next
-// 10 s: limit violation < 1e-3 rad, penetration < 1 mm, box speed
-// < 1e-3 m/s.
+// the tip starts touching the 50 g box (at 0.056 rad) and pushes it against
+// the wall; the distal joint folds to its limit -0.5 rad. After 1 s and for
+// the next 10 s: limit violation < 1e-3 rad, penetration < 1 mm, box speed
+// < 1e-3 m/s, and at every step the box pinned: pressed both by the tip and
+// by the wall. (Started 1 cm short of the box, the tip hits it at 10 m/s in
+// the first step and knocks it out from the wall; the box then rests
+// elsewhere and the criteria above hold without the box being pressed at
+// all, which is how this test once passed with PGS at 64 iterations.)
 FingerResult finger_on_box(SolverType solver, int iterations, Precision precision) {
   ModelBuilder builder;
   builder.add_articulation(finger_spec());
@@ -80,52 +85,71 @@ FingerResult finger_on_box(SolverType solver, int iterations, Precision precisio
   Eigen::VectorXd q = model.neutral_configuration();
   const int box = model.joint_index("box_root");
   q.segment<3>(model.body_q_offset[box]) = Eigen::Vector3d(0.28, 0, 0.02);  // on the ground, against the wall
+  // the tip (radius 1 cm, 0.18 m from the proximal axis at x = 0.24) touches the box's face x = 0.26
+  q[model.body_q_offset[model.dof_body[proximal]]] = std::asin(0.01 / 0.18);
   sim.set_state(0, q, Eigen::VectorXd::Zero(model.nv));
   Eigen::VectorXd target = model.neutral_configuration();
   target[model.body_q_offset[model.dof_body[proximal]]] = 1.0;
   sim.set_drive_target(0, target, Eigen::VectorXd::Zero(model.nv));
   const int distal_q = model.body_q_offset[model.dof_body[distal]];
   const int box_v = model.body_dof_offset[box];
+  const int box_body = box, tip_body = model.dof_body[distal];
   FingerResult r;
   for (int i = 0; i < 11 * 60; ++i) {
     sim.step();
     if (i < 60) continue;
     r.worst_limit = std::max(r.worst_limit, -0.5 - sim.q(0)[distal_q]);
-    for (const Contact& c : sim.contacts(0)) r.worst_penetration = std::max(r.worst_penetration, -c.separation);
+    bool pushed = false, walled = false;  // the tip and the wall press on the box
+    for (const Contact& c : sim.contacts(0)) {
+      r.worst_penetration = std::max(r.worst_penetration, -c.separation);
+      const bool on_box = c.body_a == box_body || c.body_b == box_body, pressing = c.force.norm() > 0;
+      pushed = pushed || (on_box && pressing && (c.body_a == tip_body || c.body_b == tip_body));
+      walled = walled || (on_box && pressing && (c.shape_a == static_box_shape(0) || c.shape_b == static_box_shape(0)));
+    }
+    r.steps_not_pinned += !(pushed && walled);
     r.fastest_box = std::max(r.fastest_box, sim.v(0).segment<3>(box_v).norm());
   }
-  r.held = r.worst_limit < 1e-3 && r.worst_penetration < 1e-3 && r.fastest_box < 1e-3 && sim.fault(0) == Fault::None;
+  r.held = r.worst_limit < 1e-3 && r.worst_penetration < 1e-3 && r.fastest_box < 1e-3 && r.steps_not_pinned == 0 &&
+           sim.fault(0) == Fault::None;
   return r;
 }
 
-// The fewest iterations (of 4, 8, ..., 128) that hold the finger case,
+// The fewest iterations (of 4, 8, ..., 1024) that hold the finger case,
 // printed for docs/contacts.md.
 int finger_iterations(SolverType solver, Precision precision, FingerResult& last) {
-  for (int iterations = 4; iterations <= 128; iterations *= 2) {
+  for (int iterations = 4; iterations <= 1024; iterations *= 2) {
     last = finger_on_box(solver, iterations, precision);
     if (last.held) return iterations;
   }
   return 0;
 }
 
-void expect_finger_held(SolverType solver) {
-  for (Precision precision : {Precision::Double, Precision::Float}) {
-    FingerResult last;
-    const int needed = finger_iterations(solver, precision, last);
-    std::cout << "[finger] " << solver_name(solver) << " " << precision_name(precision) << ": "
-              << (needed ? std::to_string(needed) + " iterations" : std::string("not held at 128")) << "\n";
-    EXPECT_GT(needed, 0) << solver_name(solver) << " " << precision_name(precision) << ": limit " << last.worst_limit
-                         << " rad, penetration " << last.worst_penetration << " m, box " << last.fastest_box << " m/s";
-  }
+void expect_finger_held(SolverType solver, Precision precision) {
+  FingerResult last;
+  const int needed = finger_iterations(solver, precision, last);
+  std::cout << "[finger] " << solver_name(solver) << " " << precision_name(precision) << ": "
+            << (needed ? std::to_string(needed) + " iterations" : std::string("not held at 1024")) << "\n";
+  EXPECT_GT(needed, 0) << solver_name(solver) << " " << precision_name(precision) << ": limit " << last.worst_limit
+                       << " rad, penetration " << last.worst_penetration << " m, box " << last.fastest_box << " m/s, "
+                       << last.steps_not_pinned << " steps with the box not pinned";
 }
 
-TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithPgs) { expect_finger_held(SolverType::PGS); }
+// Measured: PGS holds it in double with 1024 iterations, TGS with 128.
+// Gauss-Seidel passes the tip's push through the light box to the wall a
+// little per sweep (the two normal rows couple with 1/m_box against a
+// diagonal of 1/m_box + 1/m_finger, m_finger ~ 0.9 kg with the implicit
+// drive: about 5 % of the error left per sweep), so it needs many sweeps.
+TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithPgs) { expect_finger_held(SolverType::PGS, Precision::Double); }
+TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithTgs) { expect_finger_held(SolverType::TGS, Precision::Double); }
 
-// Known to fail (docs/contacts.md, "Open problems"): TGS keeps the box
-// moving at 1e-3 to 2e-2 m/s, and more substeps make it worse (the
-// implicit drive's weight is the whole step's while TGS advances the rows
-// by substeps). Run with --gtest_also_run_disabled_tests.
-TEST(ContactScenes, DISABLED_StiffFingerHoldsTheBoxAgainstTheWallWithTgs) { expect_finger_held(SolverType::TGS); }
+// Known to fail (docs/contacts.md, "Open problems"): in float neither solver
+// settles by 1024 iterations (PGS: the box keeps moving at 7e-3 m/s; TGS:
+// 5e-3 m/s, the distal joint 0.05 rad past its limit). Run with
+// --gtest_also_run_disabled_tests.
+TEST(ContactScenes, DISABLED_StiffFingerHoldsTheBoxAgainstTheWallInFloat) {
+  expect_finger_held(SolverType::PGS, Precision::Float);
+  expect_finger_held(SolverType::TGS, Precision::Float);
+}
 
 // A quadruped floating over the ground, its joints held in the stance by
 // PD drives (kp 300 N m/rad, kd 8 N m s/rad), dropped from 5 cm above the
