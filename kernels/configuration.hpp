@@ -56,6 +56,21 @@ inline Quaternion<L> load_quaternion(const lane::scalar_t<L>* q) {
   return {lane::load<L>(q), lane::load<L>(q + W), lane::load<L>(q + 2 * W), lane::load<L>(q + 3 * W)};
 }
 
+// Three consecutive fields of a [field][lane] array.
+template <class L>
+inline Vec3<L> load_vec3(const lane::scalar_t<L>* p) {
+  constexpr std::size_t W = lane::width_v<L>;
+  return {lane::load<L>(p), lane::load<L>(p + W), lane::load<L>(p + 2 * W)};
+}
+
+template <class L>
+inline void store_vec3(const Vec3<L>& a, lane::scalar_t<L>* p) {
+  constexpr std::size_t W = lane::width_v<L>;
+  lane::store(a.x, p);
+  lane::store(a.y, p + W);
+  lane::store(a.z, p + 2 * W);
+}
+
 template <class L>
 inline void store_normalized(const Quaternion<L>& q, lane::scalar_t<L>* out) {
   constexpr std::size_t W = lane::width_v<L>;
@@ -132,20 +147,14 @@ void add_frame_turn_rate(const KernelModel<lane::scalar_t<L>>& km, const lane::s
                          const lane::scalar_t<L>* a, lane::scalar_t<L> weight_h, lane::scalar_t<L> scale,
                          lane::scalar_t<L>* x) {
   constexpr std::size_t W = lane::width_v<L>;
-  auto load3 = [](const lane::scalar_t<L>* p) -> Vec3<L> {
-    return {lane::load<L>(p), lane::load<L>(p + W), lane::load<L>(p + 2 * W)};
-  };
   for (int b = 0; b < km.nbody; ++b) {
     if (km.body_joint[b] != JointType::Free) continue;
     const int o = km.body_dof_offset[b] * W;
-    const Vec3<L> lin = load3(v + o), w = load3(v + o + 3 * W);
-    const Vec3<L> dlin = load3(a + o), dw = load3(a + o + 3 * W);
+    const Vec3<L> lin = load_vec3<L>(v + o), w = load_vec3<L>(v + o + 3 * W);
+    const Vec3<L> dlin = load_vec3<L>(a + o), dw = load_vec3<L>(a + o + 3 * W);
     const Vec3<L> change = spatial::add(spatial::cross(dw, lin), spatial::cross(w, dlin));
     const Vec3<L> rate = spatial::add(spatial::cross(w, lin), spatial::scale(L(weight_h), change));
-    const Vec3<L> sum = spatial::add(load3(x + o), spatial::scale(L(scale), rate));
-    lane::store(sum.x, x + o);
-    lane::store(sum.y, x + o + W);
-    lane::store(sum.z, x + o + 2 * W);
+    store_vec3(spatial::add(load_vec3<L>(x + o), spatial::scale(L(scale), rate)), x + o);
   }
 }
 
@@ -163,15 +172,10 @@ void turn_free_linear(const KernelModel<lane::scalar_t<L>>& km, const lane::scal
   for (int b = 0; b < km.nbody; ++b) {
     if (km.body_joint[b] != JointType::Free) continue;
     const int o = km.body_dof_offset[b] * W;
-    const Vec3<L> w = {lane::load<L>(velocity + o + 3 * W) * h, lane::load<L>(velocity + o + 4 * W) * h,
-                       lane::load<L>(velocity + o + 5 * W) * h};
-    const Quaternion<L> d = quaternion_exp(w);
+    const Quaternion<L> d = quaternion_exp(spatial::scale(h, load_vec3<L>(velocity + o + 3 * W)));
     const Mat3<L> D = quaternion_rotation(d.w, d.x, d.y, d.z);
-    const Vec3<L> in = {lane::load<L>(x + o), lane::load<L>(x + o + W), lane::load<L>(x + o + 2 * W)};
-    const Vec3<L> out = turn == Turn::ToStart ? spatial::rotate(D, in) : spatial::rotate_back(D, in);
-    lane::store(out.x, x + o);
-    lane::store(out.y, x + o + W);
-    lane::store(out.z, x + o + 2 * W);
+    const Vec3<L> in = load_vec3<L>(x + o);
+    store_vec3(turn == Turn::ToStart ? spatial::rotate(D, in) : spatial::rotate_back(D, in), x + o);
   }
 }
 
