@@ -110,33 +110,80 @@ inline void gyroscopic_jacobian(const Inertia6<L>& I, const Vec6<L>& v, lane::sc
   }
 }
 
-// Pass 2 for body b with an N-DOF joint (N a compile-time constant so the
-// small loops unroll): U = IA S, D = S^T U + armature, u = tau - S^T pA, and
-// the articulated inertia and bias handed to the parent.
-template <int N, class L, class JointTerms>
-inline void aba_backward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, const int* axes, JointTerms& terms,
-                               Workspace<L>& ws) {
+// Joint rate qd of DOF k of a body's joint; in.v == nullptr: at rest.
+template <class L>
+inline L joint_rate(const lane::scalar_t<L>* v, int dof) {
+  return v ? lane::load<L>(v + dof * lane::width_v<L>) : L(lane::scalar_t<L>(0));
+}
+
+// The velocity-product acceleration c = v x (S qd) of a body with velocity v
+// (RBDA eq. 5.7, S constant in body coordinates), from the nonzero entries
+// of S qd only: a revolute joint's c = qd (v_y, -v_x, 0, w_y, -w_x, 0).
+template <class S, class L>
+LOCKSTEP_INLINE Vec6<L> joint_bias_accel(const Vec6<L>& v, const L* qd) {
   using T = lane::scalar_t<L>;
+  const L zero(T(0));
+  if constexpr (S::count == 1 && S::index[0] == 5) {
+    return {{v.e[1] * qd[0], -(v.e[0] * qd[0]), zero, v.e[4] * qd[0], -(v.e[3] * qd[0]), zero}};
+  } else if constexpr (S::count == 1 && S::index[0] == 2) {
+    return {{v.e[4] * qd[0], -(v.e[3] * qd[0]), zero, zero, zero, zero}};
+  } else {
+    Vec6<L> vJ;
+    for (int k = 0; k < 6; ++k) vJ.e[k] = zero;
+    for (int k = 0; k < S::count; ++k) vJ.e[S::index[k]] = qd[k];
+    return spatial::motion_cross(v, vJ);
+  }
+}
+
+// Pass 2 for body b, whose children are done (RBDA Table 7.1): its
+// articulated inertia IA and bias force pA (the rigid body's, plus what its
+// children handed over), then U = IA S, D = S^T U + armature (+ w from the
+// joint terms), u = tau - S^T pA for pass 3, and Ia, pa handed to the parent.
+// The joint's axes are compile-time constants (S), so IA's entries stay in
+// registers; the rigid inertia is built here, not stored by an earlier pass.
+template <class S, class L, class JointTerms>
+inline void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in,
+                              int b, JointTerms& terms, Workspace<L>& ws, Inertia6<L>& carry_inertia,
+                              Vec6<L>& carry_force) {
+  using T = lane::scalar_t<L>;
+  constexpr int N = S::count;
   const int dof0 = km.body_dof_offset[b];
-  const Inertia6<L>& IA = ws.inertia[b];
-  const Vec6<L>& pA = ws.force[b];
-  L* U = &ws.joint_U[6 * dof0];  // column k at U + 6k
+  const BodyInertia<L> I = load_body_inertia<L>(in.inertia, b);
+  const Vec6<L> v = ws.velocity[b];
+  Inertia6<L> IA = rigid_inertia(I);
+  if constexpr (N == 6)
+    if (terms.implicit_gyroscopic_step() != 0)
+      gyroscopic_jacobian(IA, v, terms.implicit_gyroscopic_step(), &ws.gyroscopic[ws.joint_Dinv_offset[b]]);
+  Vec6<L> pA = spatial::force_cross(v, rigid_mul(I, v));
+  if (in.wrench) pA = spatial::sub(pA, body_wrench<L>(in.wrench, b, ws.world[b], I.com));
+  if (km.aba_takes_carry[b]) {
+    spatial::add_to(IA, carry_inertia);
+    pA = spatial::add(pA, carry_force);
+  }
+  if (km.aba_takes_sum[b]) {
+    spatial::add_to(IA, ws.inertia[b]);
+    pA = spatial::add(pA, ws.force[b]);
+  }
+  L U[6 * N];  // column k at U + 6k
   for (int k = 0; k < N; ++k)
-    for (int r = 0; r < 6; ++r) U[6 * k + r] = spatial::at(IA, r, axes[k]);
+    for (int r = 0; r < 6; ++r) U[6 * k + r] = spatial::at(IA, r, S::index[k]);
+  for (int k = 0; k < 6 * N; ++k) ws.joint_U[6 * dof0 + k] = U[k];
   L D[N * N];
   for (int k = 0; k < N; ++k)
-    for (int l = 0; l < N; ++l) D[k * N + l] = U[6 * l + axes[k]];
+    for (int l = 0; l < N; ++l) D[k * N + l] = U[6 * l + S::index[k]];
+  L u[N];
   for (int k = 0; k < N; ++k) {
     L& Dkk = D[k * N + k];
     Dkk = Dkk + L(km.dof_armature[dof0 + k]);
     L tau_k;
     Dkk = Dkk + terms.apply(dof0 + k, Dkk, tau_k);
-    ws.joint_u[dof0 + k] = tau_k - pA.e[axes[k]];
+    u[k] = tau_k - pA.e[S::index[k]];
+    ws.joint_u[dof0 + k] = u[k];
   }
   // D^-1 for one DOF; D's L D L^T factor for a Spherical joint; for a Free
-  // root, the LU factor of D plus its implicit gyroscopic Jacobian h G
-  // (not symmetric), kept by pass 1 in ws.gyroscopic.
-  L* F = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
+  // root, the LU factor of D plus its implicit gyroscopic Jacobian h G (not
+  // symmetric).
+  L F[N * N];
   if constexpr (N == 1) {
     F[0] = L(T(1)) / D[0];
   } else if constexpr (N == 3) {
@@ -147,8 +194,9 @@ inline void aba_backward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, 
     for (int k = 0; k < N * N; ++k) F[k] = terms.implicit_gyroscopic_step() != 0 ? D[k] + hG[k] : D[k];
     lu_factor(N, F);
   }
-  const int parent = km.body_parent[b];
-  if (parent < 0) return;
+  for (int k = 0; k < N * N; ++k) ws.joint_Dinv[ws.joint_Dinv_offset[b] + k] = F[k];
+  const AbaHandoff handoff = km.aba_handoff[b];
+  if (handoff == AbaHandoff::Root) return;
   // Ia = IA - U D^-1 U^T;  pa = pA + Ia c + U D^-1 u   (RBDA eq. 7.42-7.43).
   // Row r of U D^-1 solves D x = (row r of U), D being symmetric.
   L UDinv[6 * N];
@@ -157,28 +205,54 @@ inline void aba_backward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, 
     if constexpr (N == 1) UDinv[r] = UDinv[r] * F[0];
     else ldlt_solve(N, F, &UDinv[r * N]);
   }
-  // IA is not needed after this pass (pass 3 reads U, D and u): update in place.
-  Inertia6<L>& Ia = ws.inertia[b];
   for (int r = 0; r < 6; ++r)
     for (int c = r; c < 6; ++c) {
-      L& e = spatial::at(Ia, r, c);
+      L& e = spatial::at(IA, r, c);
       for (int k = 0; k < N; ++k) e = lane::fnmadd(UDinv[r * N + k], U[6 * k + c], e);
     }
-  Vec6<L> pa = spatial::add(pA, spatial::mul(Ia, ws.bias_accel[b]));
+  L qd[N];
+  for (int k = 0; k < N; ++k) qd[k] = joint_rate<L>(in.v, dof0 + k);
+  Vec6<L> pa = spatial::add(pA, spatial::mul(IA, joint_bias_accel<S>(v, qd)));
   for (int r = 0; r < 6; ++r)
-    for (int k = 0; k < N; ++k) pa.e[r] = lane::fmadd(UDinv[r * N + k], ws.joint_u[dof0 + k], pa.e[r]);
-  spatial::add_to(ws.inertia[parent], spatial::inertia_to_parent(ws.local[b], Ia));
-  ws.force[parent] = spatial::add(ws.force[parent], spatial::force_to_parent(ws.local[b], pa));
+    for (int k = 0; k < N; ++k) pa.e[r] = lane::fmadd(UDinv[r * N + k], u[k], pa.e[r]);
+  const Transform<L>& X = ws.local[b];
+  const Vec6<L> pa_parent = spatial::force_to_parent(X, pa);
+  const int parent = km.body_parent[b];
+  using spatial::Write;
+  switch (handoff) {
+    case AbaHandoff::Carry:
+      spatial::inertia_to_parent<Write::Set>(X, IA, carry_inertia);
+      for (int k = 0; k < 6; ++k) spatial::write<Write::Set>(carry_force.e[k], pa_parent.e[k]);
+      break;
+    case AbaHandoff::Store:
+      spatial::inertia_to_parent<Write::Set>(X, IA, ws.inertia[parent]);
+      for (int k = 0; k < 6; ++k) spatial::write<Write::Set>(ws.force[parent].e[k], pa_parent.e[k]);
+      break;
+    case AbaHandoff::Add:
+      spatial::inertia_to_parent<Write::Add>(X, IA, ws.inertia[parent]);
+      for (int k = 0; k < 6; ++k) spatial::write<Write::Add>(ws.force[parent].e[k], pa_parent.e[k]);
+      break;
+    case AbaHandoff::Root: break;
+  }
 }
 
-// Pass 3 for body b: qacc = D^-1 (u - U^T a'), a = a' + S qacc.
-template <int N, class L>
-inline void aba_forward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, const int* axes, const Vec6<L>& a0,
-                              Workspace<L>& ws, lane::scalar_t<L>* qacc_out) {
+// Pass 3 for body b: a' = X a_parent + c, qacc = D^-1 (u - U^T a'),
+// a = a' + S qacc.
+template <class S, class L>
+inline void aba_forward_body(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* v, int b,
+                             const Vec6<L>& a0, Workspace<L>& ws, lane::scalar_t<L>* qacc_out) {
   constexpr std::size_t W = lane::width_v<L>;
+  constexpr int N = S::count;
   const int dof0 = km.body_dof_offset[b];
   const int parent = km.body_parent[b];
-  Vec6<L> a = spatial::add(spatial::motion_to_child(ws.local[b], parent < 0 ? a0 : ws.accel[parent]), ws.bias_accel[b]);
+  Vec6<L> a;
+  if (parent < 0) {
+    a = spatial::motion_to_child(ws.local[b], a0);  // c = v x (S qd) = 0 when v = S qd
+  } else {
+    L qd[N];
+    for (int k = 0; k < N; ++k) qd[k] = joint_rate<L>(v, dof0 + k);
+    a = spatial::add(spatial::motion_to_child(ws.local[b], ws.accel[parent]), joint_bias_accel<S>(ws.velocity[b], qd));
+  }
   const L* U = &ws.joint_U[6 * dof0];
   const L* F = &ws.joint_Dinv[ws.joint_Dinv_offset[b]];
   L qdd[N];
@@ -192,7 +266,7 @@ inline void aba_forward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, c
   else lu_solve(N, F, qdd);
   for (int k = 0; k < N; ++k) {
     lane::store(qdd[k], qacc_out + (dof0 + k) * W);
-    a.e[axes[k]] = a.e[axes[k]] + qdd[k];
+    a.e[S::index[k]] = a.e[S::index[k]] + qdd[k];
   }
   ws.accel[b] = a;
 }
@@ -202,37 +276,22 @@ inline void aba_forward_joint(const KernelModel<lane::scalar_t<L>>& km, int b, c
 template <class L, class JointTerms>
 void aba_with(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in, JointTerms& terms,
               Workspace<L>& ws, lane::scalar_t<L>* qacc_out) {
-  // pass 1: velocities, velocity-product accelerations, rigid inertias and bias forces
+  // pass 1: velocities
   body_velocities<L>(km, in.v, ws);
-  for (int b = 0; b < km.nbody; ++b) {
-    const BodyInertia<L> I = load_body_inertia<L>(in.inertia, b);
-    const Vec6<L>& v = ws.velocity[b];
-    ws.inertia[b] = rigid_inertia(I);
-    if (km.body_joint[b] == JointType::Free && terms.implicit_gyroscopic_step() != 0)
-      gyroscopic_jacobian(ws.inertia[b], v, terms.implicit_gyroscopic_step(), &ws.gyroscopic[ws.joint_Dinv_offset[b]]);
-    Vec6<L> pA = spatial::force_cross(v, rigid_mul(I, v));
-    if (in.wrench) pA = spatial::sub(pA, body_wrench<L>(in.wrench, b, ws.world[b], I.com));
-    ws.force[b] = pA;
-  }
-  // pass 2 (leaves to roots): articulated inertias IA and bias forces pA
-  for (int b = km.nbody - 1; b >= 0; --b) {
-    int axes[6];
-    switch (joint_axes(km.body_joint[b], axes)) {
-      case 1: aba_backward_joint<1>(km, b, axes, terms, ws); break;
-      case 3: aba_backward_joint<3>(km, b, axes, terms, ws); break;
-      case 6: aba_backward_joint<6>(km, b, axes, terms, ws); break;
-    }
-  }
+  // pass 2 (leaves to roots): articulated inertias and bias forces. A body's
+  // share for its parent waits in the carry when the parent is the next
+  // body visited (a chain), in ws.inertia / ws.force otherwise.
+  Inertia6<L> carry_inertia;
+  Vec6<L> carry_force;
+  for (int b = km.nbody - 1; b >= 0; --b)
+    with_motion_axes(km.body_joint[b], [&](auto S) {
+      aba_backward_body<decltype(S)>(km, in, b, terms, ws, carry_inertia, carry_force);
+    });
   // pass 3 (roots to leaves): accelerations
   const Vec6<L> a0 = world_acceleration<L>(in.gravity);
-  for (int b = 0; b < km.nbody; ++b) {
-    int axes[6];
-    switch (joint_axes(km.body_joint[b], axes)) {
-      case 1: aba_forward_joint<1>(km, b, axes, a0, ws, qacc_out); break;
-      case 3: aba_forward_joint<3>(km, b, axes, a0, ws, qacc_out); break;
-      case 6: aba_forward_joint<6>(km, b, axes, a0, ws, qacc_out); break;
-    }
-  }
+  for (int b = 0; b < km.nbody; ++b)
+    with_motion_axes(km.body_joint[b],
+                     [&](auto S) { aba_forward_body<decltype(S)>(km, in.v, b, a0, ws, qacc_out); });
 }
 
 // ABA with the joint forces in.tau.

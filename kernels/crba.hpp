@@ -21,7 +21,7 @@ void crba_tree(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>
   // composite inertias, leaves to roots
   for (int b = km.nbody - 1; b >= 0; --b) {
     const int parent = km.body_parent[b];
-    if (parent >= 0) spatial::add_to(ws.inertia[parent], spatial::inertia_to_parent(ws.local[b], ws.inertia[b]));
+    if (parent >= 0) spatial::inertia_to_parent<spatial::Write::Add>(ws.local[b], ws.inertia[b], ws.inertia[parent]);
   }
   auto M = [&](int r, int c) { return M_out + (r * nv + c) * W; };
   for (int b = 0; b < km.nbody; ++b) {

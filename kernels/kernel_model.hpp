@@ -26,6 +26,13 @@ void flatten_transform(const Eigen::Isometry3d& X, T* out) {
   for (int k = 0; k < 3; ++k) out[9 + k] = static_cast<T>(X.translation()[k]);
 }
 
+// Where ABA's backward pass puts a body's articulated inertia and bias
+// force, seen from its parent: the parent is the next body visited
+// (Carry: kept in the pass's local carry, never stored per body), or the
+// parent's sum of its other children in the workspace, which the first of
+// them visited starts (Store) and the rest add to (Add). Root: none.
+enum class AbaHandoff : std::uint8_t { Root, Carry, Store, Add };
+
 template <class T>
 struct KernelModel {
   int nbody = 0, nq = 0, nv = 0, nframe = 0;
@@ -39,23 +46,60 @@ struct KernelModel {
   std::vector<int> frame_body;        // (nframe), -1: world
   std::vector<T> frame_placement;     // (nframe x 12), in the body frame (or the world)
   std::vector<T> default_inertia;     // (nbody x kInertiaParams), the model's values
+  std::vector<AbaHandoff> aba_handoff;        // (nbody) see AbaHandoff
+  std::vector<std::uint8_t> aba_takes_carry;  // (nbody) the next body visited hands over by Carry
+  std::vector<std::uint8_t> aba_takes_sum;    // (nbody) some child hands over by Store / Add
 
   explicit KernelModel(const Model& model);
 };
 
 // The spatial axes a joint frees, as indices into [v; w] of the child body
-// frame: every motion subspace S is a set of unit columns.
-inline int joint_axes(JointType type, int axes[6]) {
+// frame: every motion subspace S is a set of unit columns. MotionAxes<J>
+// has them at compile time (kernels that keep a body's 6x6 blocks in
+// registers need every index known), joint_axes at run time.
+template <JointType J>
+struct MotionAxes;
+template <>
+struct MotionAxes<JointType::Revolute> {
+  static constexpr int count = 1;
+  static constexpr int index[6] = {5};
+};
+template <>
+struct MotionAxes<JointType::Prismatic> {
+  static constexpr int count = 1;
+  static constexpr int index[6] = {2};
+};
+template <>
+struct MotionAxes<JointType::Spherical> {
+  static constexpr int count = 3;
+  static constexpr int index[6] = {3, 4, 5};
+};
+template <>
+struct MotionAxes<JointType::Free> {
+  static constexpr int count = 6;
+  static constexpr int index[6] = {0, 1, 2, 3, 4, 5};
+};
+
+// Calls f(MotionAxes<J>{}) for the joint type of a moving joint (bodies'
+// inbound joints are never Fixed: fixed joints are fused).
+template <class F>
+inline void with_motion_axes(JointType type, F&& f) {
   switch (type) {
-    case JointType::Revolute: axes[0] = 5; return 1;
-    case JointType::Prismatic: axes[0] = 2; return 1;
-    case JointType::Spherical: axes[0] = 3; axes[1] = 4; axes[2] = 5; return 3;
-    case JointType::Free:
-      for (int k = 0; k < 6; ++k) axes[k] = k;
-      return 6;
-    case JointType::Fixed: return 0;
+    case JointType::Revolute: f(MotionAxes<JointType::Revolute>{}); break;
+    case JointType::Prismatic: f(MotionAxes<JointType::Prismatic>{}); break;
+    case JointType::Spherical: f(MotionAxes<JointType::Spherical>{}); break;
+    case JointType::Free: f(MotionAxes<JointType::Free>{}); break;
+    case JointType::Fixed: break;
   }
-  return 0;
+}
+
+inline int joint_axes(JointType type, int axes[6]) {
+  int n = 0;
+  with_motion_axes(type, [&](auto S) {
+    n = S.count;
+    for (int k = 0; k < n; ++k) axes[k] = S.index[k];
+  });
+  return n;
 }
 
 // Inputs of a kernel for one block: arrays laid out [field][lane], width
@@ -78,9 +122,8 @@ struct Workspace {
   std::vector<Transform<L>> world;    // (nbody) body in world coordinates
   std::vector<Vec6<L>> velocity;      // (nbody) spatial velocity, body coordinates
   std::vector<Vec6<L>> accel;         // (nbody) spatial acceleration, body coordinates
-  std::vector<Vec6<L>> bias_accel;    // (nbody) c = v x vJ
-  std::vector<Vec6<L>> force;         // (nbody) RNEA force / ABA articulated bias pA
-  std::vector<Inertia6<L>> inertia;   // (nbody) articulated or composite inertia
+  std::vector<Vec6<L>> force;         // (nbody) RNEA force / ABA: children's sum of bias forces (AbaHandoff)
+  std::vector<Inertia6<L>> inertia;   // (nbody) CRBA composite inertia / ABA: children's sum of articulated inertias
   std::vector<L> joint_U;             // (nv x 6) U = IA S, one 6-column per DOF
   std::vector<L> joint_Dinv;          // (sum over bodies of ndof^2) D^-1 (1-DOF joints) or the L D L^T factor of D = S^T IA S + armature + w
   std::vector<int> joint_Dinv_offset; // (nbody)
@@ -96,7 +139,7 @@ struct Workspace {
 template <class L>
 template <class T>
 Workspace<L>::Workspace(const KernelModel<T>& km)
-    : local(km.nbody), world(km.nbody), velocity(km.nbody), accel(km.nbody), bias_accel(km.nbody),
+    : local(km.nbody), world(km.nbody), velocity(km.nbody), accel(km.nbody),
       force(km.nbody), inertia(km.nbody), joint_U(6 * km.nv), joint_Dinv_offset(km.nbody), joint_u(km.nv),
       matrix(km.nv * km.nv), vector(km.nv) {
   int offset = 0;

@@ -105,27 +105,24 @@ void frame_transforms(const KernelModel<lane::scalar_t<L>>& km, const Workspace<
   }
 }
 
-// Spatial velocity of every body in its own coordinates, v_i = X v_parent + S qd,
-// and the velocity-product acceleration c_i = v_i x (S qd) (RBDA eq. 5.7, with
-// S constant in body coordinates). v == nullptr means all joints at rest.
+// Spatial velocity of every body in its own coordinates, v_i = X v_parent + S qd
+// (RBDA eq. 5.7). v == nullptr means all joints at rest.
 template <class L>
 void body_velocities(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* v, Workspace<L>& ws) {
   constexpr std::size_t W = lane::width_v<L>;
   for (int b = 0; b < km.nbody; ++b) {
     const int parent = km.body_parent[b];
-    int axes[6];
-    const int n = joint_axes(km.body_joint[b], axes);
-    Vec6<L> vJ{};
-    for (int k = 0; k < 6; ++k) vJ.e[k] = L(0);
+    Vec6<L> out;
+    if (parent < 0)
+      for (int k = 0; k < 6; ++k) out.e[k] = L(0);
+    else
+      out = spatial::motion_to_child(ws.local[b], ws.velocity[parent]);
     if (v)
-      for (int k = 0; k < n; ++k) vJ.e[axes[k]] = lane::load<L>(v + (km.body_dof_offset[b] + k) * W);
-    if (parent < 0) {
-      ws.velocity[b] = vJ;
-      for (int k = 0; k < 6; ++k) ws.bias_accel[b].e[k] = L(0);  // v x vJ = 0 when v = vJ
-    } else {
-      ws.velocity[b] = spatial::add(spatial::motion_to_child(ws.local[b], ws.velocity[parent]), vJ);
-      ws.bias_accel[b] = spatial::motion_cross(ws.velocity[b], vJ);
-    }
+      with_motion_axes(km.body_joint[b], [&](auto S) {
+        for (int k = 0; k < S.count; ++k)
+          out.e[S.index[k]] = out.e[S.index[k]] + lane::load<L>(v + (km.body_dof_offset[b] + k) * W);
+      });
+    ws.velocity[b] = out;
   }
 }
 

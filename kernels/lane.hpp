@@ -15,6 +15,11 @@
 #include <cstddef>
 #include <type_traits>
 
+// For the small helpers that move a body's whole 6x6 blocks: inlined, their
+// operands stay in registers rather than passing through a return slot in
+// memory (which compilers otherwise fill with a memcpy call).
+#define LOCKSTEP_INLINE inline __attribute__((always_inline))
+
 namespace lockstep::lane {
 
 using simd_arch = xsimd::default_arch;

@@ -184,7 +184,7 @@ template <class L> inline void add_to(Inertia6<L>& I, const Inertia6<L>& J) {
 }
 
 // R S R^T for symmetric S.
-template <class L> inline void rotate_sym(const Mat3<L>& R, const L* S, L* out) {
+template <class L> LOCKSTEP_INLINE void rotate_sym(const Mat3<L>& R, const L* S, L* out) {
   // T = R S (full), then out = T R^T, upper triangle only.
   Mat3<L> T;
   for (int r = 0; r < 3; ++r)
@@ -197,30 +197,37 @@ template <class L> inline void rotate_sym(const Mat3<L>& R, const L* S, L* out) 
   }
 }
 
-// The inertia seen from the parent: X^T I X with X = motion_to_child(X).
-// First rotate into parent axes (A' = R A R^T, B' = R B R^T, C' = R C R^T),
-// then shift the origin by p with P = [p]x:
+// Whether a result overwrites its destination or is added to it.
+enum class Write { Set, Add };
+template <Write mode, class L> LOCKSTEP_INLINE void write(L& out, const L& value) {
+  if constexpr (mode == Write::Add) out = out + value;
+  else out = value;
+}
+
+// The inertia seen from the parent, X^T I X with X = motion_to_child(X),
+// written (or added) to out. First rotate into parent axes (A' = R A R^T,
+// B' = R B R^T, C' = R C R^T), then shift the origin by p with P = [p]x:
 //   A'' = A', B'' = B' - A' P, C'' = C' + P B' + (P B')^T - P A' P.
-template <class L> inline Inertia6<L> inertia_to_parent(const Transform<L>& X, const Inertia6<L>& I) {
-  Inertia6<L> out;
-  rotate_sym(X.R, I.A, out.A);
-  rotate_sym(X.R, I.C, out.C);
-  const Mat3<L>& B = reinterpret_cast<const Mat3<L>&>(I.B);
-  Mat3<L> Rt;
+template <Write mode, class L> LOCKSTEP_INLINE void inertia_to_parent(const Transform<L>& X, const Inertia6<L>& I, Inertia6<L>& out) {
+  L A[6], C[6];
+  rotate_sym(X.R, I.A, A);
+  rotate_sym(X.R, I.C, C);
+  Mat3<L> RB, Bp;  // R B, then B' = (R B) R^T
   for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) Rt(r, c) = X.R(c, r);
-  const Mat3<L> Bp = mul(mul(X.R, B), Rt);
+    for (int c = 0; c < 3; ++c)
+      RB(r, c) = lane::fmadd(X.R(r, 2), I.B[6 + c], lane::fmadd(X.R(r, 1), I.B[3 + c], X.R(r, 0) * I.B[c]));
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      Bp(r, c) = lane::fmadd(RB(r, 2), X.R(c, 2), lane::fmadd(RB(r, 1), X.R(c, 1), RB(r, 0) * X.R(c, 0)));
   const Vec3<L>& p = X.p;
-  // A' P: column c of P is e_c x ... use (A' P)(r, c) = sum_k A'(r,k) P(k,c), P = [[0,-z,y],[z,0,-x],[-y,x,0]].
-  const L* Ap = out.A;
-  auto a = [&](int r, int c) -> const L& { return Ap[kSym3[r][c]]; };
-  Mat3<L> AP;
+  // B'' = B' - A' P, with P = [[0,-z,y],[z,0,-x],[-y,x,0]].
+  auto a = [&](int r, int c) -> const L& { return A[kSym3[r][c]]; };
+  Mat3<L> Bpp;
   for (int r = 0; r < 3; ++r) {
-    AP(r, 0) = lane::fnmadd(a(r, 2), p.y, a(r, 1) * p.z);
-    AP(r, 1) = lane::fnmadd(a(r, 0), p.z, a(r, 2) * p.x);
-    AP(r, 2) = lane::fnmadd(a(r, 1), p.x, a(r, 0) * p.y);
+    Bpp(r, 0) = Bp(r, 0) - lane::fnmadd(a(r, 2), p.y, a(r, 1) * p.z);
+    Bpp(r, 1) = Bp(r, 1) - lane::fnmadd(a(r, 0), p.z, a(r, 2) * p.x);
+    Bpp(r, 2) = Bp(r, 2) - lane::fnmadd(a(r, 1), p.x, a(r, 0) * p.y);
   }
-  for (int k = 0; k < 9; ++k) out.B[k] = Bp.m[k] - AP.m[k];
   // P M for a 3x3 M: row r of P times M.
   auto P_mul = [&](const Mat3<L>& M) {
     Mat3<L> PM;
@@ -233,14 +240,12 @@ template <class L> inline Inertia6<L> inertia_to_parent(const Transform<L>& X, c
   };
   // C'' = C' + P B' + (P B')^T - P A' P = C' + P (B' - A' P) + (P B')^T
   //     = C' + P B'' + (P B')^T. Symmetric, so only the upper triangle is needed.
-  const Mat3<L> PBpp = P_mul(reinterpret_cast<const Mat3<L>&>(out.B));
+  const Mat3<L> PBpp = P_mul(Bpp);
   const Mat3<L> PBp = P_mul(Bp);
   const int rows[6] = {0, 1, 2, 0, 0, 1}, cols[6] = {0, 1, 2, 1, 2, 2};
-  for (int k = 0; k < 6; ++k) {
-    const int r = rows[k], c = cols[k];
-    out.C[k] = out.C[k] + PBpp(r, c) + PBp(c, r);
-  }
-  return out;
+  for (int k = 0; k < 6; ++k) write<mode>(out.A[k], A[k]);
+  for (int k = 0; k < 9; ++k) write<mode>(out.B[k], Bpp.m[k]);
+  for (int k = 0; k < 6; ++k) write<mode>(out.C[k], C[k] + PBpp(rows[k], cols[k]) + PBp(cols[k], rows[k]));
 }
 
 }  // namespace spatial
