@@ -10,6 +10,9 @@
 // Central differences with step h = 1e-5 have truncation error ~h^2 * |f'''|
 // ~1e-10 and round-off ~eps / h ~1e-11, so they are checked to 1e-6 relative.
 #include "batch/copy_dynamics.hpp"
+#include "contact_support.hpp"
+#include "io/urdf_import.hpp"
+#include "kernels/kernel_model.hpp"
 #include "test_support.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -33,17 +36,54 @@ class Identities : public test::ModelCaseTest {
   std::mt19937 rng_{42};
 };
 
-TEST_P(Identities, AbaInvertsRnea) {
+void expect_aba_inverts_rnea(const Model& model, const CopyDynamics& dyn, std::mt19937& rng) {
   for (int trial = 0; trial < 3; ++trial) {
-    const Eigen::VectorXd q = test::random_configuration(model_, rng_);
-    const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 2.0);
-    const Eigen::VectorXd a = test::random_vector(model_.nv, rng_, 3.0);
-    const Eigen::MatrixXd wrench = Eigen::MatrixXd::Random(model_.nbody, 6);
-    const Eigen::VectorXd tau = dyn_->inverse_dynamics(q, v, a, &wrench);
-    const Eigen::VectorXd a2 = dyn_->forward_dynamics(q, v, tau, &wrench);
-    const double cond = condition_number(dyn_->mass_matrix(q));
+    const Eigen::VectorXd q = test::random_configuration(model, rng);
+    const Eigen::VectorXd v = test::random_vector(model.nv, rng, 2.0);
+    const Eigen::VectorXd a = test::random_vector(model.nv, rng, 3.0);
+    const Eigen::MatrixXd wrench = Eigen::MatrixXd::Random(model.nbody, 6);
+    const Eigen::VectorXd tau = dyn.inverse_dynamics(q, v, a, &wrench);
+    const Eigen::VectorXd a2 = dyn.forward_dynamics(q, v, tau, &wrench);
+    const double cond = condition_number(dyn.mass_matrix(q));
     EXPECT_LE((a2 - a).norm(), kSolveSlack * kEps * cond * (a.norm() + 1.0)) << "cond(M) = " << cond;
   }
+}
+
+TEST_P(Identities, AbaInvertsRnea) { expect_aba_inverts_rnea(model_, *dyn_, rng_); }
+
+// ABA's backward pass hands each body's articulated inertia to its parent
+// in a carry when the parent is the next body visited, else into the
+// parent's sum, which the first of those children starts (Store) and the
+// others add to (Add). A forest of a quadruped (a base with four legs of
+// three bodies), a free box and a fixed-base arm (a chain) has every kind
+// and several roots; ABA must invert RNEA on it as on one robot.
+TEST(AbaHandoff, ForestOfQuadrupedFreeBoxAndArm) {
+  ModelBuilder builder;
+  UrdfOptions floating;
+  floating.floating_base = true;
+  add_urdf(builder, test::shared_model_path("anymal_b"), floating);
+  builder.add_articulation(test::free_shape_spec("box", ShapeType::Box, Eigen::Vector3d(0.1, 0.2, 0.3), 2.0));
+  UrdfOptions arm;
+  arm.name_prefix = "arm_";
+  add_urdf(builder, test::shared_model_path("ur5"), arm);
+  const Model model = builder.finalize();
+  const KernelModel<double> km(model);
+  using H = AbaHandoff;
+  // anymal_b: base 0, legs (1 2 3) (4 5 6) (7 8 9) (10 11 12); the box 13;
+  // ur5's six links 14..19.
+  const std::vector<H> expected = {H::Root,  H::Carry, H::Carry, H::Carry, H::Add,   H::Carry, H::Carry,
+                                   H::Add,   H::Carry, H::Carry, H::Store, H::Carry, H::Carry, H::Root,
+                                   H::Root,  H::Carry, H::Carry, H::Carry, H::Carry, H::Carry};
+  ASSERT_EQ(km.nbody, static_cast<int>(expected.size()));
+  EXPECT_EQ(km.aba_handoff, expected);
+  EXPECT_TRUE(km.aba_takes_sum[0]);
+  EXPECT_TRUE(km.aba_takes_carry[0]);
+  EXPECT_FALSE(km.aba_takes_sum[1]);
+  EXPECT_FALSE(km.aba_takes_carry[3]);
+  EXPECT_FALSE(km.aba_takes_carry[13]);  // the box: its next body is the arm's root
+  const CopyDynamics dyn(model, Precision::Double);
+  std::mt19937 rng(7);
+  expect_aba_inverts_rnea(model, dyn, rng);
 }
 
 TEST_P(Identities, CrbaColumnsAreRneaDifferences) {
