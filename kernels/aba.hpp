@@ -8,6 +8,7 @@
 
 #include "kernels/body_terms.hpp"
 #include "kernels/kinematics.hpp"
+#include "kernels/subtree.hpp"
 
 namespace lockstep {
 
@@ -143,8 +144,7 @@ LOCKSTEP_INLINE Vec6<L> joint_bias_accel(const Vec6<L>& v, const L* qd) {
 // registers; the rigid inertia is built here, not stored by an earlier pass.
 template <class S, class L, class JointTerms>
 inline void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in,
-                              int b, JointTerms& terms, Workspace<L>& ws, Inertia6<L>& carry_inertia,
-                              Vec6<L>& carry_force) {
+                              int b, JointTerms& terms, Workspace<L>& ws, SubtreeCarry<L>& carry) {
   using T = lane::scalar_t<L>;
   constexpr int N = S::count;
   const int dof0 = km.body_dof_offset[b];
@@ -156,14 +156,7 @@ inline void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km, const Bl
       gyroscopic_jacobian(IA, v, terms.implicit_gyroscopic_step(), &ws.gyroscopic[ws.joint_Dinv_offset[b]]);
   Vec6<L> pA = spatial::force_cross(v, rigid_mul(I, v));
   if (in.wrench) pA = spatial::sub(pA, body_wrench<L>(in.wrench, b, ws.world[b], I.com));
-  if (km.aba_takes_carry[b]) {
-    spatial::add_to(IA, carry_inertia);
-    pA = spatial::add(pA, carry_force);
-  }
-  if (km.aba_takes_sum[b]) {
-    spatial::add_to(IA, ws.inertia[b]);
-    pA = spatial::add(pA, ws.force[b]);
-  }
+  add_children(km, b, ws, carry, IA, &pA);
   L U[6 * N];  // column k at U + 6k
   for (int k = 0; k < N; ++k)
     for (int r = 0; r < 6; ++r) U[6 * k + r] = spatial::at(IA, r, S::index[k]);
@@ -195,8 +188,7 @@ inline void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km, const Bl
     lu_factor(N, F);
   }
   for (int k = 0; k < N * N; ++k) ws.joint_Dinv[ws.joint_Dinv_offset[b] + k] = F[k];
-  const AbaHandoff handoff = km.aba_handoff[b];
-  if (handoff == AbaHandoff::Root) return;
+  if (km.body_handoff[b] == Handoff::Root) return;
   // Ia = IA - U D^-1 U^T;  pa = pA + Ia c + U D^-1 u   (RBDA eq. 7.42-7.43).
   // Row r of U D^-1 solves D x = (row r of U), D being symmetric.
   L UDinv[6 * N];
@@ -215,25 +207,7 @@ inline void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km, const Bl
   Vec6<L> pa = spatial::add(pA, spatial::mul(IA, joint_bias_accel<S>(v, qd)));
   for (int r = 0; r < 6; ++r)
     for (int k = 0; k < N; ++k) pa.e[r] = lane::fmadd(UDinv[r * N + k], u[k], pa.e[r]);
-  const Transform<L>& X = ws.local[b];
-  const Vec6<L> pa_parent = spatial::force_to_parent(X, pa);
-  const int parent = km.body_parent[b];
-  using spatial::Write;
-  switch (handoff) {
-    case AbaHandoff::Carry:
-      spatial::inertia_to_parent<Write::Set>(X, IA, carry_inertia);
-      for (int k = 0; k < 6; ++k) spatial::write<Write::Set>(carry_force.e[k], pa_parent.e[k]);
-      break;
-    case AbaHandoff::Store:
-      spatial::inertia_to_parent<Write::Set>(X, IA, ws.inertia[parent]);
-      for (int k = 0; k < 6; ++k) spatial::write<Write::Set>(ws.force[parent].e[k], pa_parent.e[k]);
-      break;
-    case AbaHandoff::Add:
-      spatial::inertia_to_parent<Write::Add>(X, IA, ws.inertia[parent]);
-      for (int k = 0; k < 6; ++k) spatial::write<Write::Add>(ws.force[parent].e[k], pa_parent.e[k]);
-      break;
-    case AbaHandoff::Root: break;
-  }
+  hand_to_parent(km, b, ws, carry, IA, &pa);
 }
 
 // Pass 3 for body b: a' = X a_parent + c, qacc = D^-1 (u - U^T a'),
@@ -278,15 +252,12 @@ void aba_with(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::
               Workspace<L>& ws, lane::scalar_t<L>* qacc_out) {
   // pass 1: velocities
   body_velocities<L>(km, in.v, ws);
-  // pass 2 (leaves to roots): articulated inertias and bias forces. A body's
-  // share for its parent waits in the carry when the parent is the next
-  // body visited (a chain), in ws.inertia / ws.force otherwise.
-  Inertia6<L> carry_inertia;
-  Vec6<L> carry_force;
+  // pass 2 (leaves to roots): articulated inertias and bias forces, each
+  // body's share handed to its parent through the carry (kernels/subtree.hpp)
+  SubtreeCarry<L> carry;
   for (int b = km.nbody - 1; b >= 0; --b)
-    with_motion_axes(km.body_joint[b], [&](auto S) {
-      aba_backward_body<decltype(S)>(km, in, b, terms, ws, carry_inertia, carry_force);
-    });
+    with_motion_axes(km.body_joint[b],
+                     [&](auto S) { aba_backward_body<decltype(S)>(km, in, b, terms, ws, carry); });
   // pass 3 (roots to leaves): accelerations
   const Vec6<L> a0 = world_acceleration<L>(in.gravity);
   for (int b = 0; b < km.nbody; ++b)

@@ -25,20 +25,20 @@ KernelModel<T>::KernelModel(const Model& model)
   }
   for (double a : model.dof_armature) dof_armature.push_back(static_cast<T>(a));
   for (const Eigen::Isometry3d& X : model.frame_placement) append_placement(frame_placement, X);
-  // ABA visits bodies from the last to the first: a body's children come
+  // Leaves-to-root passes visit bodies from the last to the first: a body's children come
   // before it, the child right after it (if any) last.
-  aba_handoff.assign(nbody, AbaHandoff::Root);
-  aba_takes_carry.assign(nbody, 0);
-  aba_takes_sum.assign(nbody, 0);
+  body_handoff.assign(nbody, Handoff::Root);
+  body_takes_carry.assign(nbody, 0);
+  body_takes_sum.assign(nbody, 0);
   for (int b = nbody - 1; b >= 0; --b) {
     const int parent = body_parent[b];
     if (parent < 0) continue;
     if (parent == b - 1) {
-      aba_handoff[b] = AbaHandoff::Carry;
-      aba_takes_carry[parent] = 1;
+      body_handoff[b] = Handoff::Carry;
+      body_takes_carry[parent] = 1;
     } else {
-      aba_handoff[b] = aba_takes_sum[parent] ? AbaHandoff::Add : AbaHandoff::Store;
-      aba_takes_sum[parent] = 1;
+      body_handoff[b] = body_takes_sum[parent] ? Handoff::Add : Handoff::Store;
+      body_takes_sum[parent] = 1;
     }
   }
 }

@@ -26,12 +26,12 @@ void flatten_transform(const Eigen::Isometry3d& X, T* out) {
   for (int k = 0; k < 3; ++k) out[9 + k] = static_cast<T>(X.translation()[k]);
 }
 
-// Where ABA's backward pass puts a body's articulated inertia and bias
-// force, seen from its parent: the parent is the next body visited
-// (Carry: kept in the pass's local carry, never stored per body), or the
-// parent's sum of its other children in the workspace, which the first of
-// them visited starts (Store) and the rest add to (Add). Root: none.
-enum class AbaHandoff : std::uint8_t { Root, Carry, Store, Add };
+// How a leaves-to-root pass (ABA's articulated inertias and bias forces;
+// kernels/subtree.hpp) hands a body's subtree share to its parent: the parent is the next body visited (Carry: kept in
+// the pass's local carry, never stored per body), or the parent's sum of
+// its other children in the workspace, which the first of them visited
+// starts (Store) and the rest add to (Add). Root: none.
+enum class Handoff : std::uint8_t { Root, Carry, Store, Add };
 
 template <class T>
 struct KernelModel {
@@ -46,9 +46,9 @@ struct KernelModel {
   std::vector<int> frame_body;        // (nframe), -1: world
   std::vector<T> frame_placement;     // (nframe x 12), in the body frame (or the world)
   std::vector<T> default_inertia;     // (nbody x kInertiaParams), the model's values
-  std::vector<AbaHandoff> aba_handoff;        // (nbody) see AbaHandoff
-  std::vector<std::uint8_t> aba_takes_carry;  // (nbody) the next body visited hands over by Carry
-  std::vector<std::uint8_t> aba_takes_sum;    // (nbody) some child hands over by Store / Add
+  std::vector<Handoff> body_handoff;           // (nbody) see Handoff
+  std::vector<std::uint8_t> body_takes_carry;  // (nbody) the next body visited hands over by Carry
+  std::vector<std::uint8_t> body_takes_sum;    // (nbody) some child hands over by Store / Add
 
   explicit KernelModel(const Model& model);
 };
@@ -122,8 +122,8 @@ struct Workspace {
   std::vector<Transform<L>> world;    // (nbody) body in world coordinates
   std::vector<Vec6<L>> velocity;      // (nbody) spatial velocity, body coordinates
   std::vector<Vec6<L>> accel;         // (nbody) spatial acceleration, body coordinates
-  std::vector<Vec6<L>> force;         // (nbody) RNEA force / ABA: children's sum of bias forces (AbaHandoff)
-  std::vector<Inertia6<L>> inertia;   // (nbody) CRBA composite inertia / ABA: children's sum of articulated inertias
+  std::vector<Vec6<L>> force;         // (nbody) RNEA force / ABA: children's sum of bias forces (Handoff)
+  std::vector<Inertia6<L>> inertia;   // (nbody) CRBA composite inertia / ABA: children's sum of articulated inertias (Handoff)
   std::vector<L> joint_U;             // (nv x 6) U = IA S, one 6-column per DOF
   std::vector<L> joint_Dinv;          // (sum over bodies of ndof^2) D^-1 (1-DOF joints) or the L D L^T factor of D = S^T IA S + armature + w
   std::vector<int> joint_Dinv_offset; // (nbody)

@@ -57,7 +57,7 @@ TEST_P(Identities, AbaInvertsRnea) { expect_aba_inverts_rnea(model_, *dyn_, rng_
 // others add to (Add). A forest of a quadruped (a base with four legs of
 // three bodies), a free box and a fixed-base arm (a chain) has every kind
 // and several roots; ABA must invert RNEA on it as on one robot.
-TEST(AbaHandoff, ForestOfQuadrupedFreeBoxAndArm) {
+TEST(SubtreeHandoff, ForestOfQuadrupedFreeBoxAndArm) {
   ModelBuilder builder;
   UrdfOptions floating;
   floating.floating_base = true;
@@ -68,19 +68,19 @@ TEST(AbaHandoff, ForestOfQuadrupedFreeBoxAndArm) {
   add_urdf(builder, test::shared_model_path("ur5"), arm);
   const Model model = builder.finalize();
   const KernelModel<double> km(model);
-  using H = AbaHandoff;
+  using H = Handoff;
   // anymal_b: base 0, legs (1 2 3) (4 5 6) (7 8 9) (10 11 12); the box 13;
   // ur5's six links 14..19.
   const std::vector<H> expected = {H::Root,  H::Carry, H::Carry, H::Carry, H::Add,   H::Carry, H::Carry,
                                    H::Add,   H::Carry, H::Carry, H::Store, H::Carry, H::Carry, H::Root,
                                    H::Root,  H::Carry, H::Carry, H::Carry, H::Carry, H::Carry};
   ASSERT_EQ(km.nbody, static_cast<int>(expected.size()));
-  EXPECT_EQ(km.aba_handoff, expected);
-  EXPECT_TRUE(km.aba_takes_sum[0]);
-  EXPECT_TRUE(km.aba_takes_carry[0]);
-  EXPECT_FALSE(km.aba_takes_sum[1]);
-  EXPECT_FALSE(km.aba_takes_carry[3]);
-  EXPECT_FALSE(km.aba_takes_carry[13]);  // the box: its next body is the arm's root
+  EXPECT_EQ(km.body_handoff, expected);
+  EXPECT_TRUE(km.body_takes_sum[0]);
+  EXPECT_TRUE(km.body_takes_carry[0]);
+  EXPECT_FALSE(km.body_takes_sum[1]);
+  EXPECT_FALSE(km.body_takes_carry[3]);
+  EXPECT_FALSE(km.body_takes_carry[13]);  // the box: its next body is the arm's root
   const CopyDynamics dyn(model, Precision::Double);
   std::mt19937 rng(7);
   expect_aba_inverts_rnea(model, dyn, rng);
