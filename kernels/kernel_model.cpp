@@ -25,8 +25,8 @@ KernelModel<T>::KernelModel(const Model& model)
   }
   for (double a : model.dof_armature) dof_armature.push_back(static_cast<T>(a));
   for (const Eigen::Isometry3d& X : model.frame_placement) append_placement(frame_placement, X);
-  // Leaves-to-root passes visit bodies from the last to the first: a body's children come
-  // before it, the child right after it (if any) last.
+  // Leaves-to-root passes visit bodies from the last to the first: a body's
+  // children come before it, the child right after it (if any) last.
   body_handoff.assign(nbody, Handoff::Root);
   body_takes_carry.assign(nbody, 0);
   body_takes_sum.assign(nbody, 0);

@@ -27,10 +27,11 @@ void flatten_transform(const Eigen::Isometry3d& X, T* out) {
 }
 
 // How a leaves-to-root pass (ABA's articulated inertias and bias forces;
-// kernels/subtree.hpp) hands a body's subtree share to its parent: the parent is the next body visited (Carry: kept in
-// the pass's local carry, never stored per body), or the parent's sum of
-// its other children in the workspace, which the first of them visited
-// starts (Store) and the rest add to (Add). Root: none.
+// kernels/subtree.hpp) hands a body's subtree share to its parent: the
+// parent is the next body visited (Carry: kept in the pass's local carry,
+// never stored per body), or the parent's sum of its other children in the
+// workspace, which the first of them visited starts (Store) and the rest
+// add to (Add). Root: none.
 enum class Handoff : std::uint8_t { Root, Carry, Store, Add };
 
 template <class T>
@@ -122,8 +123,8 @@ struct Workspace {
   std::vector<Transform<L>> world;    // (nbody) body in world coordinates
   std::vector<Vec6<L>> velocity;      // (nbody) spatial velocity, body coordinates
   std::vector<Vec6<L>> accel;         // (nbody) spatial acceleration, body coordinates
-  std::vector<Vec6<L>> force;         // (nbody) RNEA force / ABA: children's sum of bias forces (Handoff)
-  std::vector<Inertia6<L>> inertia;   // (nbody) CRBA composite inertia / ABA: children's sum of articulated inertias (Handoff)
+  std::vector<Vec6<L>> force;         // (nbody) RNEA force / ABA: sum of children's bias forces (Handoff)
+  std::vector<Inertia6<L>> inertia;   // (nbody) CRBA composite / ABA: sum of children's articulated inertias
   std::vector<L> joint_U;             // (nv x 6) U = IA S, one 6-column per DOF
   std::vector<L> joint_Dinv;          // (sum over bodies of ndof^2) D^-1 (1-DOF joints) or the L D L^T factor of D = S^T IA S + armature + w
   std::vector<int> joint_Dinv_offset; // (nbody)

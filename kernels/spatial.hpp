@@ -208,7 +208,8 @@ template <Write mode, class L> LOCKSTEP_INLINE void write(L& out, const L& value
 // written (or added) to out. First rotate into parent axes (A' = R A R^T,
 // B' = R B R^T, C' = R C R^T), then shift the origin by p with P = [p]x:
 //   A'' = A', B'' = B' - A' P, C'' = C' + P B' + (P B')^T - P A' P.
-template <Write mode, class L> LOCKSTEP_INLINE void inertia_to_parent(const Transform<L>& X, const Inertia6<L>& I, Inertia6<L>& out) {
+template <Write mode, class L>
+LOCKSTEP_INLINE void inertia_to_parent(const Transform<L>& X, const Inertia6<L>& I, Inertia6<L>& out) {
   L A[6], C[6];
   rotate_sym(X.R, I.A, A);
   rotate_sym(X.R, I.C, C);
