@@ -159,7 +159,7 @@ LOCKSTEP_INLINE void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km,
       gyroscopic_jacobian(IA, v, terms.implicit_gyroscopic_step(), &ws.gyroscopic[ws.joint_Dinv_offset[b]]);
   Vec6<L> pA = spatial::force_cross(v, rigid_mul(I, v));
   if (in.wrench) pA = spatial::sub(pA, body_wrench<L>(in.wrench, b, ws.world[b], I.com));
-  add_children(km, b, ws, carry, IA, &pA);
+  add_children(km, b, ws, carry, IA, pA);
   L U[6 * N];  // column k at U + 6k
   for (int k = 0; k < N; ++k)
     for (int r = 0; r < 6; ++r) U[6 * k + r] = spatial::at(IA, r, S::index[k]);
@@ -210,7 +210,7 @@ LOCKSTEP_INLINE void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km,
   Vec6<L> pa = spatial::add(pA, spatial::mul(IA, joint_bias_accel<S>(v, qd)));
   for (int r = 0; r < 6; ++r)
     for (int k = 0; k < N; ++k) pa.e[r] = lane::fmadd(UDinv[r * N + k], u[k], pa.e[r]);
-  hand_to_parent(km, b, ws, carry, IA, &pa);
+  hand_to_parent(km, b, ws, carry, IA, pa);
 }
 
 // Pass 3 for body b: a' = X a_parent + c, qacc = D^-1 (u - U^T a'),

@@ -252,6 +252,26 @@ Eigen::Matrix<double, 6, 1> momentum(const Model& model, const CopyDynamics& dyn
   return h;
 }
 
+Model floating_without_gravity(const char* name) {
+  Model model = test::load_shared_model(name, true);
+  model.gravity.setZero();
+  return model;
+}
+
+// A floating robot without gravity at a random state, with its momentum.
+struct FreeFlyingRobot {
+  explicit FreeFlyingRobot(const char* name) : model(floating_without_gravity(name)), dyn(model) {
+    std::mt19937 rng(1);
+    q = test::random_configuration(model, rng);
+    v = test::random_vector(model.nv, rng, 1.0);
+    h0 = momentum(model, dyn, q, v);
+  }
+  Model model;
+  CopyDynamics dyn;
+  Eigen::VectorXd q, v;
+  Eigen::Matrix<double, 6, 1> h0;
+};
+
 // Without gravity a floating robot conserves linear and angular momentum. 10 s
 // of RK4 at dt = 1 ms. The rotation is updated by the averaged body angular
 // velocity (RK on the rotation group without the dexp correction: second
@@ -261,13 +281,12 @@ Eigen::Matrix<double, 6, 1> momentum(const Model& model, const CopyDynamics& dyn
 // position is integrated with the stages' world-frame velocities.
 TEST(Momentum, FloatingBaseWithoutGravityConservesMomentum) {
   for (const char* name : {"anymal_b", "solo12"}) {
-    Model model = test::load_shared_model(name, true);
-    model.gravity.setZero();
-    CopyDynamics dyn(model);
-    std::mt19937 rng(1);
-    Eigen::VectorXd q = test::random_configuration(model, rng), v = test::random_vector(model.nv, rng, 1.0);
+    FreeFlyingRobot robot(name);
+    const Model& model = robot.model;
+    const CopyDynamics& dyn = robot.dyn;
+    Eigen::VectorXd q = robot.q, v = robot.v;
     const Eigen::VectorXd tau = Eigen::VectorXd::Zero(model.nv);
-    const Eigen::Matrix<double, 6, 1> h0 = momentum(model, dyn, q, v);
+    const Eigen::Matrix<double, 6, 1>& h0 = robot.h0;
     const double dt = 1e-3;
     for (int step = 0; step < 10000; ++step) {
       const Eigen::VectorXd a1 = dyn.forward_dynamics(q, v, tau);
@@ -309,12 +328,11 @@ TEST(Momentum, FloatingBaseWithoutGravityConservesMomentum) {
 // or more.
 TEST(Momentum, SimulatorRk4KeepsAFloatingRobotsMomentum) {
   for (const char* name : {"anymal_b", "solo12"}) {
-    Model model = test::load_shared_model(name, true);
-    model.gravity.setZero();
-    CopyDynamics dyn(model);
-    std::mt19937 rng(1);
-    const Eigen::VectorXd q = test::random_configuration(model, rng), v = test::random_vector(model.nv, rng, 1.0);
-    const Eigen::Matrix<double, 6, 1> h0 = momentum(model, dyn, q, v);
+    const FreeFlyingRobot robot(name);
+    const Model& model = robot.model;
+    const Eigen::VectorXd& q = robot.q;
+    const Eigen::VectorXd& v = robot.v;
+    const Eigen::Matrix<double, 6, 1>& h0 = robot.h0;
     auto drift = [&](double dt) {
       StepOptions o;
       o.dt = dt;
@@ -324,7 +342,7 @@ TEST(Momentum, SimulatorRk4KeepsAFloatingRobotsMomentum) {
       Simulator sim(model, 1, o);
       sim.set_state(0, q, v);
       sim.step(static_cast<int>(std::lround(2.0 / dt)));
-      return (momentum(model, dyn, sim.q(0), sim.v(0)) - h0).norm();
+      return (momentum(model, robot.dyn, sim.q(0), sim.v(0)) - h0).norm();
     };
     const double coarse = drift(1e-3), fine = drift(5e-4);
     EXPECT_GT(h0.norm(), 1e-2) << name;
