@@ -62,7 +62,9 @@ struct FingerResult {
 // the first step and knocks it out from the wall; the box then rests
 // elsewhere and the criteria above hold without the box being pressed at
 // all, which is how this test once passed with PGS at 64 iterations.)
-FingerResult finger_on_box(SolverType solver, int iterations, Precision precision) {
+// `wall_sunk`: how far the wall's bottom lies below the ground (0: in the
+// ground plane, with the box's bottom).
+FingerResult finger_on_box(SolverType solver, int iterations, Precision precision, double wall_sunk = 0.0) {
   ModelBuilder builder;
   builder.add_articulation(finger_spec());
   builder.add_articulation(free_shape_spec("box", ShapeType::Box, Eigen::Vector3d::Constant(0.02), 0.05));
@@ -74,8 +76,8 @@ FingerResult finger_on_box(SolverType solver, int iterations, Precision precisio
   o.precision = precision;
   o.contacts.ground = true;
   StaticBox wall;
-  wall.pose.translation() = Eigen::Vector3d(0.35, 0, 0.1);  // face at x = 0.30
-  wall.half_extents = Eigen::Vector3d(0.05, 0.2, 0.1);
+  wall.pose.translation() = Eigen::Vector3d(0.35, 0, 0.1 - 0.5 * wall_sunk);  // face at x = 0.30, top at 0.2
+  wall.half_extents = Eigen::Vector3d(0.05, 0.2, 0.1 + 0.5 * wall_sunk);
   o.contacts.boxes.push_back(wall);
   std::vector<DofSettings> dofs = default_dof_settings(model);
   const int proximal = model.dof_index("proximal_joint"), distal = model.dof_index("distal_joint");
@@ -116,18 +118,18 @@ FingerResult finger_on_box(SolverType solver, int iterations, Precision precisio
 
 // The fewest iterations (of 4, 8, ..., 1024) that hold the finger case,
 // printed for docs/contacts.md.
-int finger_iterations(SolverType solver, Precision precision, FingerResult& last) {
+int finger_iterations(SolverType solver, Precision precision, FingerResult& last, double wall_sunk) {
   for (int iterations = 4; iterations <= 1024; iterations *= 2) {
-    last = finger_on_box(solver, iterations, precision);
+    last = finger_on_box(solver, iterations, precision, wall_sunk);
     if (last.held) return iterations;
   }
   return 0;
 }
 
-void expect_finger_held(SolverType solver, Precision precision) {
+void expect_finger_held(SolverType solver, Precision precision, double wall_sunk = 0.0) {
   FingerResult last;
-  const int needed = finger_iterations(solver, precision, last);
-  std::cout << "[finger] " << solver_name(solver) << " " << precision_name(precision) << ": "
+  const int needed = finger_iterations(solver, precision, last, wall_sunk);
+  std::cout << "[finger] " << solver_name(solver) << " " << precision_name(precision) << " wall sunk " << wall_sunk << " m: "
             << (needed ? std::to_string(needed) + " iterations" : std::string("not held at 1024")) << "\n";
   EXPECT_GT(needed, 0) << solver_name(solver) << " " << precision_name(precision) << ": limit " << last.worst_limit
                        << " rad, penetration " << last.worst_penetration << " m, box " << last.fastest_box << " m/s, "
@@ -135,10 +137,11 @@ void expect_finger_held(SolverType solver, Precision precision) {
 }
 
 // Measured: PGS holds it in double with 1024 iterations, TGS with 128.
-// Gauss-Seidel passes the tip's push through the light box to the wall a
-// little per sweep (the two normal rows couple with 1/m_box against a
-// diagonal of 1/m_box + 1/m_finger, m_finger ~ 0.9 kg with the implicit
-// drive: about 5 % of the error left per sweep), so it needs many sweeps.
+// Each step's rows have a slow mode (the tip pushing the box into the wall
+// with the distal joint on its limit, which only the drive-heavy proximal
+// joint gives way to: eigenvalue 0.55 against diagonals of 80), of which
+// Gauss-Seidel removes little per sweep; in double the scene settles and
+// the warm start then holds it (docs/contacts.md, "Open problems").
 TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithPgs) { expect_finger_held(SolverType::PGS, Precision::Double); }
 TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithTgs) { expect_finger_held(SolverType::TGS, Precision::Double); }
 
@@ -149,6 +152,15 @@ TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithTgs) { expect_finger
 TEST(ContactScenes, DISABLED_StiffFingerHoldsTheBoxAgainstTheWallInFloat) {
   expect_finger_held(SolverType::PGS, Precision::Float);
   expect_finger_held(SolverType::TGS, Precision::Float);
+}
+
+// Known to fail as well: the double results above rest on the wall's
+// bottom lying in the ground plane with the box's (clipping then adds a
+// fifth wall point near a corner). With the wall sunk 1 cm into the ground,
+// PGS at 1024 iterations leaves the box moving at 2.3e-3 m/s.
+TEST(ContactScenes, DISABLED_StiffFingerHoldsTheBoxAgainstASunkWall) {
+  expect_finger_held(SolverType::PGS, Precision::Double, 0.01);
+  expect_finger_held(SolverType::TGS, Precision::Double, 0.01);
 }
 
 // A quadruped floating over the ground, its joints held in the stance by
