@@ -130,6 +130,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   validate(model, copies, options_, dofs_);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
+  own_inertia_.assign(copies, false);
   make_plan();
   const StepPlan plan = step_plan();
   if (options_.integrator == Integrator::RK4 &&
@@ -182,6 +183,9 @@ void Simulator::make_plan() {
       decide(Stage::StribeckFriction, mode(Stage::StribeckFriction), stribeck, "DOFs with Stribeck friction"),
       decide(Stage::ExternalWrenches, mode(Stage::ExternalWrenches), wrenches_used_ ? 1 : 0,
              "calls of set_link_wrench"),
+      decide(Stage::PerCopyInertia, mode(Stage::PerCopyInertia),
+             static_cast<int>(std::count(own_inertia_.begin(), own_inertia_.end(), true)),
+             "copies with their own inertial parameters"),
       decide(Stage::HardLimits, mode(Stage::HardLimits), hard, "DOFs with hard position limits"),
       decide(Stage::VelocityLimits, mode(Stage::VelocityLimits), velocity, "DOFs with velocity limits"),
       decide(Stage::CoulombFriction, mode(Stage::CoulombFriction), coulomb, "DOFs with Coulomb friction"),
@@ -198,6 +202,7 @@ StepPlan Simulator::step_plan() const {
   p.soft_limits = runs(Stage::SoftLimits);
   p.stribeck = runs(Stage::StribeckFriction);
   p.wrenches = runs(Stage::ExternalWrenches);
+  p.per_copy_inertia = runs(Stage::PerCopyInertia);
   p.hard_limits = runs(Stage::HardLimits);
   p.velocity_limits = runs(Stage::VelocityLimits);
   p.coulomb_friction = runs(Stage::CoulombFriction);
@@ -386,6 +391,12 @@ void Simulator::note_copy_inputs(int copy) {
     if (!wrenches_used_ && nonzero(b.state.wrench)) wrenches_used_ = changed = true;
   });
   if (changed) replan();
+  // a restored copy may carry inertias of its own, or the model's again
+  const Eigen::VectorXd model_inertia = visit([&](auto& b) {
+    using T = std::decay_t<decltype(b.state.inertia.at(0, 0))>;
+    return BatchState<T>::model_inertia_params(*model_).template cast<T>().template cast<double>().eval();
+  });
+  note_own_inertia(copy, visit([&](auto& b) { return b.state.inertia.get(copy); }) != model_inertia);
 }
 
 void Simulator::set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
@@ -469,6 +480,13 @@ void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::V
               Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(inertia).eigenvalues().minCoeff() >= -1e-12 * scale,
           where + "the rotational inertia must be symmetric positive semidefinite");
   visit([&](auto& b) { b.state.set_body_inertia(copy, body, mass, com, inertia); });
+  note_own_inertia(copy, true);
+}
+
+void Simulator::note_own_inertia(int copy, bool own) {
+  if (own_inertia_[copy] == own) return;
+  own_inertia_[copy] = own;
+  replan();
 }
 
 void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench) {

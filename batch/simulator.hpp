@@ -36,7 +36,9 @@ struct StepBatch {
 
   // q, v, tau (feedforward), wrench, inertia, gravity; qacc = last (v1 - v0) / h.
   // Wrenches written here act only with Stage::ExternalWrenches on (forced,
-  // or after a set_link_wrench call).
+  // or after a set_link_wrench call); inertias only with
+  // Stage::PerCopyInertia on (forced, or after set_body_inertia, or a
+  // restore of a copy with inertias other than the model's).
   BatchState<T> state;
   BatchArray<T> target_q;  // (nq) drive target position (quaternions for Spherical joints)
   BatchArray<T> target_v;  // (nv) drive target velocity
@@ -228,6 +230,7 @@ class Simulator {
   // Replans when a copy's drive gains, damping or wrenches need a stage the
   // plan skips.
   void note_copy_inputs(int copy);
+  void note_own_inertia(int copy, bool own);
   Eigen::VectorXd checked_configuration(const Eigen::VectorXd& q, const char* what) const;
   template <class F>
   decltype(auto) visit(F&& f) const;
@@ -244,6 +247,7 @@ class Simulator {
   bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive
   bool per_copy_damping_ = false;  // set_joint_damping gave some copy damping
   bool wrenches_used_ = false;   // set_link_wrench was called
+  std::vector<bool> own_inertia_;  // per copy: set_body_inertia or a restore gave it inertias other than the model's
   std::unique_ptr<Engine> engine_;
 };
 

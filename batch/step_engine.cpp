@@ -106,7 +106,9 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   // The armature is per copy (StepBatch::armature): the step's ABA and CRBA
   // take it with the implicit diagonal (StepJointTerms), not from km_.
   std::fill(km_.dof_armature.begin(), km_.dof_armature.end(), T(0));
-  const int candidates = plan.contacts ? set_up_contacts(copies, options.contacts, pairs) : 0;
+  int candidates = 0;
+  if (plan.contacts) candidates = set_up_contacts(copies, options.contacts, pairs);
+  else make_contact_arrays(copies, 0, 0, options.contacts);
   const int rows = static_cast<int>(row_specs_.size()), columns = static_cast<int>(column_dof_.size());
   scratch_ = std::make_unique<tbb::enumerable_thread_specific<Scratch>>(
       [this, rows, columns, candidates] { return Scratch(km_, rows, columns, contact_params_, candidates); });
@@ -157,7 +159,16 @@ int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, 
   p.max_depenetration_speed = static_cast<T>(settings.max_depenetration_speed);
   p.torsional = static_cast<T>(settings.torsional_friction);
   p.error_reduction = static_cast<T>(options_.error_reduction);
-  const int C = p.capacity, k = p.rows_per_contact;
+  make_contact_arrays(copies, p.capacity, p.rows_per_contact, settings);
+  return most;
+}
+
+// The per-copy ground and contact arrays, `capacity` slots of
+// `rows_per_contact` rows each; a scene without contacts has them with no
+// slots, so that snapshots and set_ground see every copy.
+template <class L>
+void StepEngine<L>::make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings) {
+  const int C = capacity, k = rows_per_contact;
   StepBatch<T>& B = batch_;
   B.ground = BatchArray<T>(copies, 4, kWidth);
   const Eigen::Vector3d n = settings.ground_normal.normalized();
@@ -171,7 +182,6 @@ int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, 
   B.contact_count = BatchArray<T>(copies, 1, kWidth);
   B.contact_dropped = BatchArray<T>(copies, 1, kWidth);
   B.contact_overflow_steps = BatchArray<T>(copies, 1, kWidth);
-  return most;
 }
 
 template <class L>
@@ -188,6 +198,7 @@ template <class L>
 void StepEngine<L>::set_plan(const StepPlan& plan) {
   plan_.drives = plan.drives, plan_.damping = plan.damping, plan_.springs = plan.springs;
   plan_.soft_limits = plan.soft_limits, plan_.stribeck = plan.stribeck, plan_.wrenches = plan.wrenches;
+  plan_.per_copy_inertia = plan.per_copy_inertia;
   jm_.drives = plan.drives, jm_.damping = plan.damping, jm_.springs = plan.springs;
   jm_.soft_limits = plan.soft_limits, jm_.stribeck = plan.stribeck;
 }
@@ -265,7 +276,7 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   for (const auto& [bad, code] : checks) input_fault = lane::select(bad, fault_code<L>(code), input_fault);
 
   BlockInputs<T> in;
-  in.inertia = B.state.inertia.block(block);
+  in.inertia = B.state.inertia.block(inertia_block(block));
   in.gravity = B.state.gravity.block(block);
   in.wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
   const JointTermInputs<T> terms_in{q, v, B.target_q.block(block), B.target_v.block(block),
@@ -463,7 +474,7 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
     for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
     for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
-    factor_step_mass_matrix<L>(km_, batch_.state.inertia.block(block), s.terms.implicit_diagonal.data(), s.ws);
+    factor_step_mass_matrix<L>(km_, batch_.state.inertia.block(inertia_block(block)), s.terms.implicit_diagonal.data(), s.ws);
     const T* H = reinterpret_cast<const T*>(s.ws.matrix.data());
     // With the contacts first, the joint rows' own block of D (and their
     // columns of Mt^-1) is needed only where some lane's limits act; PGS

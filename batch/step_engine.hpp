@@ -21,6 +21,7 @@ namespace lockstep {
 struct StepPlan {
   bool drives = false, damping = false, springs = false, soft_limits = false, stribeck = false;
   bool wrenches = false;
+  bool per_copy_inertia = false;  // else every block reads block 0's inertias (all copies hold the model's)
   bool hard_limits = false, velocity_limits = false, coulomb_friction = false;
   bool contacts = false;
 };
@@ -114,10 +115,16 @@ class StepEngine final : public Simulator::Engine {
   void solve_rows(int block, const T* q, T h, Scratch& s);
   ContactArrays<T> contact_arrays(int block);
   int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
+  void make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings);
   void record_applied(int block, T h, Scratch& s);
 
   StepOptions options_;
   StepPlan plan_;
+  // The block whose inertial parameters block `block` steps with: its own,
+  // or block 0's while every copy holds the model's (Stage::PerCopyInertia
+  // skipped): one shared block stays in cache instead of 40 bytes per body
+  // and copy streaming through it every step.
+  int inertia_block(int block) const { return plan_.per_copy_inertia ? block : 0; }
   KernelModel<T> km_;
   JointTermModel<T> jm_;
   std::vector<JointRowSpec<T>> row_specs_;

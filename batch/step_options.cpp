@@ -21,6 +21,7 @@ const char* stage_name(Stage stage) {
     case Stage::SoftLimits: return "soft limits";
     case Stage::StribeckFriction: return "Stribeck friction";
     case Stage::ExternalWrenches: return "external wrenches";
+    case Stage::PerCopyInertia: return "per-copy inertia";
     case Stage::HardLimits: return "hard limits";
     case Stage::VelocityLimits: return "velocity limits";
     case Stage::CoulombFriction: return "Coulomb friction";

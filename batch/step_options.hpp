@@ -74,6 +74,7 @@ enum class Stage : int {
   SoftLimits,      // spring-damper limits, implicit
   StribeckFriction,// smooth friction force, explicit
   ExternalWrenches,// link wrenches through J^T
+  PerCopyInertia,  // each copy's own inertial parameters; skipped, all share the model's
   HardLimits,      // solver rows: one-sided position limits
   VelocityLimits,  // solver rows: |v| bounds
   CoulombFriction, // solver rows: boxed friction impulses

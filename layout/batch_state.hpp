@@ -25,6 +25,10 @@ struct BatchState {
   BatchArray<T> inertia;  // (nbody x 10) per-copy inertial parameters
   BatchArray<T> gravity;  // (3) world gravity
 
+  // The model's inertial parameters, kInertiaParams per body: every copy's
+  // at the start.
+  static Eigen::VectorXd model_inertia_params(const Model& model);
+
   // Overrides one body's inertial parameters in one copy: mass (kg), COM in
   // the body frame, rotational inertia about the COM in body axes.
   void set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com, const Eigen::Matrix3d& rot_inertia);
@@ -37,6 +41,11 @@ BatchState<T>::BatchState(const Model& model, int copies, int width)
       inertia(copies, kInertiaParams * model.nbody, width), gravity(copies, 3, width) {
   q.set_all(model.neutral_configuration());
   gravity.set_all(model.gravity);
+  inertia.set_all(model_inertia_params(model));
+}
+
+template <class T>
+Eigen::VectorXd BatchState<T>::model_inertia_params(const Model& model) {
   Eigen::VectorXd params(kInertiaParams * model.nbody);
   for (int b = 0; b < model.nbody; ++b) {
     const Eigen::Matrix3d& I = model.body_inertia[b];
@@ -44,7 +53,7 @@ BatchState<T>::BatchState(const Model& model, int copies, int width)
     params.segment<kInertiaParams>(kInertiaParams * b) << model.body_mass[b], c.x(), c.y(), c.z(), I(0, 0), I(1, 1),
         I(2, 2), I(0, 1), I(0, 2), I(1, 2);
   }
-  inertia.set_all(params);
+  return params;
 }
 
 template <class T>

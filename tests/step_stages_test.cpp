@@ -6,6 +6,7 @@
 #include "tests/sim_support.hpp"
 
 #include <algorithm>
+#include <cctype>
 
 namespace lockstep {
 namespace {
@@ -61,6 +62,8 @@ Simulator run_scene(const Model& model, Stage unused, StepOptions options) {
     if (unused == Stage::Drives) in.kp.setZero(), in.kd.setZero();
     in.push = unused != Stage::ExternalWrenches;
     test::apply_copy_inputs(sim, c, in);
+    if (unused != Stage::PerCopyInertia && c % 2 == 1)  // a heavier base in odd copies
+      sim.set_body_inertia(c, 0, 1.1 * model.body_mass[0], model.body_com[0], 1.1 * model.body_inertia[0]);
   }
   sim.step(kSteps);
   return sim;
@@ -68,7 +71,7 @@ Simulator run_scene(const Model& model, Stage unused, StepOptions options) {
 
 std::string stage_test_name(const ::testing::TestParamInfo<int>& info) {
   std::string name = stage_name(stage_at(info.param));
-  std::replace(name.begin(), name.end(), ' ', '_');
+  std::replace_if(name.begin(), name.end(), [](char c) { return !std::isalnum(static_cast<unsigned char>(c)); }, '_');
   return name;
 }
 
@@ -222,6 +225,41 @@ TEST(StepStagesPlan, BatchWrenchActsWithTheStageForcedOn) {
     const double expected = mode == StageMode::On ? 4.0 / mass * dt : 0.0;
     EXPECT_NEAR(sim.v(1)[0], expected, 1e-15) << (mode == StageMode::On ? "forced on" : "automatic");
   }
+}
+
+// Copies step with one shared block of the model's inertias until some
+// copy gets its own (set_body_inertia, or a restore carrying them); such a
+// copy then steps exactly as a copy of a model with those inertias, and a
+// restore of the model's inertias shares the block again.
+TEST(StepStagesPlan, PerCopyInertiaFollowsSetBodyInertiaAndRestore) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  Model heavy = model;  // the base 10 % heavier
+  heavy.body_mass[0] *= 1.1;
+  heavy.body_inertia[0] *= 1.1;
+  const int inertia = static_cast<int>(Stage::PerCopyInertia), copies = 40, own = 37;  // own: in the last block
+  const StepOptions o = test::scene_options(Precision::Float, SolverType::PGS);
+  const std::vector<DofSettings> dofs = scene_dofs(model, Stage::Contacts);
+  Simulator sim(model, copies, o, dofs), fresh(model, copies, o, dofs), reference(heavy, 1, o, dofs);
+  EXPECT_FALSE(sim.plan()[inertia].runs) << sim.describe_plan();
+  const CopySnapshot plain = sim.snapshot(own);
+  sim.set_body_inertia(own, 0, heavy.body_mass[0], heavy.body_com[0], heavy.body_inertia[0]);
+  EXPECT_TRUE(sim.plan()[inertia].runs) << sim.describe_plan();
+  const test::CopyInputs in = test::random_copy_inputs(model, dofs, 77u, 2.0);
+  for (int c = 0; c < copies; ++c) test::apply_copy_inputs(sim, c, in);
+  test::apply_copy_inputs(reference, 0, in);
+  sim.step(20);
+  reference.step(20);
+  EXPECT_TRUE(same_state(sim, own, reference, 0)) << "the copy with the heavier base";
+  EXPECT_FALSE(same_state(sim, own, sim, 0)) << "the heavier base changed nothing";
+  // its snapshot carries the inertias into a simulator that shared them
+  fresh.restore(5, sim.snapshot(own));
+  EXPECT_TRUE(fresh.plan()[inertia].runs) << fresh.describe_plan();
+  fresh.step(10);
+  reference.step(10);
+  EXPECT_TRUE(same_state(fresh, 5, reference, 0)) << "restored into another simulator";
+  // and the model's inertias restored share the block again
+  sim.restore(own, plain);
+  EXPECT_FALSE(sim.plan()[inertia].runs) << sim.describe_plan();
 }
 
 }  // namespace
