@@ -380,6 +380,13 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     b.contact_impulse.set(copy, s.contact_impulse);
   });
   note_copy_inputs(copy);
+  // the restored copy may carry inertias of its own, or the model's again
+  const bool own = visit([&](auto& b) {
+    using T = std::decay_t<decltype(b.state.inertia.at(0, 0))>;
+    return b.state.inertia.get(copy) !=
+           BatchState<T>::model_inertia_params(*model_).template cast<T>().template cast<double>();
+  });
+  note_own_inertia(copy, own);
 }
 
 void Simulator::note_copy_inputs(int copy) {
@@ -391,12 +398,6 @@ void Simulator::note_copy_inputs(int copy) {
     if (!wrenches_used_ && nonzero(b.state.wrench)) wrenches_used_ = changed = true;
   });
   if (changed) replan();
-  // a restored copy may carry inertias of its own, or the model's again
-  const Eigen::VectorXd model_inertia = visit([&](auto& b) {
-    using T = std::decay_t<decltype(b.state.inertia.at(0, 0))>;
-    return BatchState<T>::model_inertia_params(*model_).template cast<T>().template cast<double>().eval();
-  });
-  note_own_inertia(copy, visit([&](auto& b) { return b.state.inertia.get(copy); }) != model_inertia);
 }
 
 void Simulator::set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
