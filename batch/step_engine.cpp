@@ -37,7 +37,9 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
                           const std::vector<DofSettings>& dofs, const StepPlan& plan, const ContactPairs& pairs)
-    : options_(options), plan_(plan), km_(model), batch_(model, copies, kWidth, 0) {
+    : options_(options), plan_(plan), km_(model), batch_(model, copies, kWidth, 0),
+      model_inertia_(kWidth, BatchState<T>::kInertiaParams * model.nbody, kWidth) {
+  model_inertia_.set_all(BatchState<T>::model_inertia_params(model));
   const int nv = model.nv;
   jm_.acceleration_drive.resize(nv);
   for (int k = 0; k < nv; ++k) {
@@ -276,7 +278,7 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   for (const auto& [bad, code] : checks) input_fault = lane::select(bad, fault_code<L>(code), input_fault);
 
   BlockInputs<T> in;
-  in.inertia = B.state.inertia.block(inertia_block(block));
+  in.inertia = inertia(block);
   in.gravity = B.state.gravity.block(block);
   in.wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
   const JointTermInputs<T> terms_in{q, v, B.target_q.block(block), B.target_v.block(block),
@@ -474,7 +476,7 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
     for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
     for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
-    factor_step_mass_matrix<L>(km_, batch_.state.inertia.block(inertia_block(block)), s.terms.implicit_diagonal.data(), s.ws);
+    factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
     const T* H = reinterpret_cast<const T*>(s.ws.matrix.data());
     // With the contacts first, the joint rows' own block of D (and their
     // columns of Mt^-1) is needed only where some lane's limits act; PGS

@@ -120,11 +120,13 @@ class StepEngine final : public Simulator::Engine {
 
   StepOptions options_;
   StepPlan plan_;
-  // The block whose inertial parameters block `block` steps with: its own,
-  // or block 0's while every copy holds the model's (Stage::PerCopyInertia
-  // skipped): one shared block stays in cache instead of 40 bytes per body
-  // and copy streaming through it every step.
-  int inertia_block(int block) const { return plan_.per_copy_inertia ? block : 0; }
+  // The inertial parameters block `block` steps with: its copies' own, or,
+  // with Stage::PerCopyInertia skipped, the model's in every lane
+  // (model_inertia_): one block that stays in cache instead of 40 bytes per
+  // body and copy streaming through it every step.
+  const T* inertia(int block) const {
+    return plan_.per_copy_inertia ? batch_.state.inertia.block(block) : model_inertia_.block(0);
+  }
   KernelModel<T> km_;
   JointTermModel<T> jm_;
   std::vector<JointRowSpec<T>> row_specs_;
@@ -132,6 +134,7 @@ class StepEngine final : public Simulator::Engine {
   std::vector<ContactPairSpec<T>> contact_pairs_;  // empty unless plan.contacts
   ContactParams<T> contact_params_;
   StepBatch<T> batch_;
+  BatchArray<T> model_inertia_;  // one block of the model's inertial parameters
   std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
   bool profiling_ = false;
   // The solver takes the contact rows first, the joint rows held slack

@@ -260,6 +260,15 @@ TEST(StepStagesPlan, PerCopyInertiaFollowsSetBodyInertiaAndRestore) {
   // and the model's inertias restored share the block again
   sim.restore(own, plain);
   EXPECT_FALSE(sim.plan()[inertia].runs) << sim.describe_plan();
+  // forced off, every copy steps with the model's, whatever block 0 holds
+  StepOptions off = o;
+  off.force(Stage::PerCopyInertia, StageMode::Off);
+  Simulator shared(model, copies, off, dofs);
+  shared.set_body_inertia(1, 0, heavy.body_mass[0], heavy.body_com[0], heavy.body_inertia[0]);
+  for (int c : {0, 1, own}) test::apply_copy_inputs(shared, c, in);
+  shared.step(20);
+  EXPECT_TRUE(same_state(shared, 1, shared, 0)) << "copy 1 in block 0, stage forced off";
+  EXPECT_TRUE(same_state(shared, own, shared, 0)) << "a copy in the last block, stage forced off";
 }
 
 }  // namespace
