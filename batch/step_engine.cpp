@@ -476,8 +476,13 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
     for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
     for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
-    factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
-    const T* H = reinterpret_cast<const T*>(s.ws.matrix.data());
+    // Mt's factors: from the step's one ABA at q (semi-implicit Euler), or,
+    // where the trapezoid's second ABA ran at its predicted state, by CRBA
+    T* H = reinterpret_cast<T*>(s.ws.matrix.data());
+    if (options_.integrator == Integrator::SemiImplicitEuler)
+      ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
+    else
+      factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
     // With the contacts first, the joint rows' own block of D (and their
     // columns of Mt^-1) is needed only where some lane's limits act; PGS
     // then also tests the joint rows against the contacts' velocity change
@@ -493,11 +498,16 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
     if (!contacts_first || tgs) couple();
     // rows [first, m) by PGS or TGS; the lanes where rows [0, first) stayed slack
+    // contacts.dv holds Mt^-1 J^T lambda of the final contact impulses
+    // (PGS's slack test computed it and no second phase followed)
+    bool dv_final = false;
     auto solve = [&](int first) {
+      dv_final = false;
       if (tgs) return tgs_solve(rows, options_.iterations, h, first);
       pgs_solve(rows, options_.iterations, first);
       if (first == 0) return lane::mask_t<L>(true);
       contact_velocity_change<L>(km_, H, rows.lambda.data() + mj, contacts);
+      dv_final = true;
       return joint_rows_slack<L>(row_specs_, rs, contacts.dv.data());
     };
     if (contacts_first) {
@@ -513,7 +523,10 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     }
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
     if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
-    if (mc > 0) add_contact_impulses<L>(km_, H, rows.lambda.data() + mj, contacts, s.u1.data());
+    if (mc > 0) {
+      if (!dv_final) contact_velocity_change<L>(km_, H, rows.lambda.data() + mj, contacts);
+      for (int k = 0; k < nv; ++k) s.u1[k] = s.u1[k] + contacts.dv[k];
+    }
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
     if (tgs) {
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];

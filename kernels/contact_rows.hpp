@@ -367,13 +367,15 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
     for (int j = 0; j < nv; ++j)
       if (s.moves[c * nv + j]) support[n++] = j;
     s.support_size[c] = n;
-    for (int i = c * k; i < (c + 1) * k; ++i) {
-      L* Y = &s.Y[i * nv];
-      L* Z = &s.Z[i * nv];
-      for (int t = 0; t < n; ++t) Y[support[t]] = s.J[i * nv + support[t]];
-      ltdl_transpose_solve<L>(km, H, reinterpret_cast<T*>(Y), support, n);
-      for (int t = 0; t < n; ++t) Z[support[t]] = Y[support[t]] * s.inv_dg[support[t]];
-    }
+    for (int i = c * k; i < (c + 1) * k; ++i)
+      for (int t = 0; t < n; ++t) s.Y[i * nv + support[t]] = s.J[i * nv + support[t]];
+    // the slot's rows (3, or 4 with torsion) share their support: solved together
+    T* Y = reinterpret_cast<T*>(&s.Y[c * k * nv]);
+    const int stride = nv * static_cast<int>(W);
+    if (k == 3) ltdl_transpose_solve_many<3, L>(km, H, Y, stride, support, n);
+    else ltdl_transpose_solve_many<4, L>(km, H, Y, stride, support, n);
+    for (int i = c * k; i < (c + 1) * k; ++i)
+      for (int t = 0; t < n; ++t) s.Z[i * nv + support[t]] = s.Y[i * nv + support[t]] * s.inv_dg[support[t]];
   }
   for (int c1 = 0; c1 < s.slots; ++c1)
     for (int c2 = c1; c2 < s.slots; ++c2) {

@@ -8,6 +8,23 @@
 
 namespace lockstep {
 
+// Carries the force columns F[0, n) of body b's DOFs (b's coordinates) up
+// the tree: at each ancestor j, entry(i, l, S_i^T ^jX_b^* F_l) for each DOF
+// i of j's joint (RBDA Table 6.2's inner loop).
+template <class L, class Entry>
+LOCKSTEP_INLINE void carry_columns_to_ancestors(const KernelModel<lane::scalar_t<L>>& km, const Workspace<L>& ws, int b,
+                                                Vec6<L> (&F)[6], int n, Entry&& entry) {
+  for (int j = b; km.body_parent[j] >= 0;) {
+    for (int l = 0; l < n; ++l) F[l] = spatial::force_to_parent(ws.local[j], F[l]);
+    j = km.body_parent[j];
+    int axes_j[6];
+    const int nj = joint_axes(km.body_joint[j], axes_j);
+    const int dofj = km.body_dof_offset[j];
+    for (int k = 0; k < nj; ++k)
+      for (int l = 0; l < n; ++l) entry(dofj + k, l, F[l].e[axes_j[k]]);
+  }
+}
+
 // The entries of M between a DOF and itself or its tree ancestors (both
 // triangles), all that ltdl_factor reads; the others are left as they were.
 // Needs ws.local. M_out: (nv x nv) per lane, row-major, armature on the
@@ -38,19 +55,10 @@ void crba_tree(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>
         if (k == l) m = m + L(km.dof_armature[dof0 + k]);
         lane::store(m, M(dof0 + k, dof0 + l));
       }
-    for (int j = b; km.body_parent[j] >= 0;) {
-      for (int l = 0; l < n; ++l) F[l] = spatial::force_to_parent(ws.local[j], F[l]);
-      j = km.body_parent[j];
-      int axes_j[6];
-      const int nj = joint_axes(km.body_joint[j], axes_j);
-      const int dofj = km.body_dof_offset[j];
-      for (int k = 0; k < nj; ++k)
-        for (int l = 0; l < n; ++l) {
-          const L m = F[l].e[axes_j[k]];
-          lane::store(m, M(dofj + k, dof0 + l));
-          lane::store(m, M(dof0 + l, dofj + k));
-        }
-    }
+    carry_columns_to_ancestors<L>(km, ws, b, F, n, [&](int i, int l, const L& m) {
+      lane::store(m, M(i, dof0 + l));
+      lane::store(m, M(dof0 + l, i));
+    });
   }
 }
 
@@ -66,19 +74,84 @@ void crba(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* ine
 
 // In place: M (nv x nv per lane, as crba writes it) becomes its L^T D L
 // factors, L unit lower triangular in the strict lower part, D on the
-// diagonal. Uses the tree sparsity through dof_parent.
+// diagonal. Uses the tree sparsity through the DOFs' ancestor lists.
 template <class L>
 void ltdl_factor(const KernelModel<lane::scalar_t<L>>& km, lane::scalar_t<L>* H) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
   auto at = [&](int r, int c) { return H + (r * nv + c) * W; };
+  const int* begin = km.dof_ancestor_begin.data();
+  const int* ancestors = km.dof_ancestors.data();
   for (int k = nv - 1; k >= 0; --k) {
     const L Hkk = lane::load<L>(at(k, k));
-    for (int i = km.dof_parent[k]; i >= 0; i = km.dof_parent[i]) {
+    for (int t = begin[k]; t < begin[k + 1]; ++t) {
+      const int i = ancestors[t];
       const L a = lane::load<L>(at(k, i)) / Hkk;
-      for (int j = i; j >= 0; j = km.dof_parent[j])
+      for (int u = t; u < begin[k + 1]; ++u) {  // j: i and its ancestors
+        const int j = ancestors[u];
         lane::store(lane::fnmadd(a, lane::load<L>(at(k, j)), lane::load<L>(at(i, j))), at(i, j));
+      }
       lane::store(a, at(k, i));
+    }
+  }
+}
+
+// The factors ltdl_factor makes of Mt = M + diag(w), read off the ABA run
+// just before at the same q with the same w (ws.joint_U = IA S per DOF;
+// `implicit_diagonal`: w, what the ABA's policy added to each D). The
+// factorisation eliminates leaves first, and eliminating all of a body's
+// descendants from Mt leaves that body's articulated inertia IA (the Schur
+// complement of the subtree; RBDA sec. 7.3, and Jain's innovations
+// factorisation). So when it reaches body b, b's rows already hold
+//   its own block  S^T IA S + armature + w  (ABA's D),
+//   ancestor DOF i (of body j)  U^T ^bX_j S_i,
+// the transform rigid, as the DOFs in between are not eliminated yet; what
+// is left is to eliminate b's own DOFs (more than one for Spherical and
+// Free joints), updating b's rows only: the ancestors' entries come from
+// their own IA, which already holds what eliminating b leaves. CRBA's
+// composite inertias and the elimination's updates of ancestor rows are not
+// needed. Overwrites H's entries on the tree pattern, as ltdl_factor does.
+template <class L>
+void ltdl_factor_from_aba(const KernelModel<lane::scalar_t<L>>& km, const Workspace<L>& ws, const L* implicit_diagonal,
+                          lane::scalar_t<L>* H) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km.nv;
+  auto at = [&](int r, int c) { return H + (r * nv + c) * W; };
+  const int* begin = km.dof_ancestor_begin.data();
+  const int* ancestors = km.dof_ancestors.data();
+  for (int b = 0; b < km.nbody; ++b) {
+    int axes[6];
+    const int n = joint_axes(km.body_joint[b], axes);
+    const int dof0 = km.body_dof_offset[b];
+    Vec6<L> F[6];
+    for (int l = 0; l < n; ++l)
+      for (int r = 0; r < 6; ++r) F[l].e[r] = ws.joint_U[6 * (dof0 + l) + r];
+    for (int k = 0; k < n; ++k)
+      for (int l = 0; l <= k; ++l) {
+        L m = F[l].e[axes[k]];
+        if (k == l) m = m + L(km.dof_armature[dof0 + k]) + implicit_diagonal[dof0 + k];  // ABA's D, rounded alike
+        lane::store(m, at(dof0 + k, dof0 + l));
+      }
+    if (n == 1) {  // nothing to eliminate inside the body: carry U / D, whose entries are L's
+      const L inverse = L(T(1)) / lane::load<L>(at(dof0, dof0));
+      for (int r = 0; r < 6; ++r) F[0].e[r] = F[0].e[r] * inverse;
+      carry_columns_to_ancestors<L>(km, ws, b, F, n, [&](int i, int, const L& a) { lane::store(a, at(dof0, i)); });
+      continue;
+    }
+    carry_columns_to_ancestors<L>(km, ws, b, F, n, [&](int i, int l, const L& m) { lane::store(m, at(dof0 + l, i)); });
+    for (int k = dof0 + n - 1; k >= dof0; --k) {
+      const L inverse = L(T(1)) / lane::load<L>(at(k, k));
+      for (int t = begin[k]; t < begin[k + 1]; ++t) {
+        const int i = ancestors[t];
+        const L a = lane::load<L>(at(k, i)) * inverse;
+        if (i >= dof0)  // one of b's own DOFs: its row takes the elimination of k
+          for (int u = t; u < begin[k + 1]; ++u) {
+            const int j = ancestors[u];
+            lane::store(lane::fnmadd(a, lane::load<L>(at(k, j)), lane::load<L>(at(i, j))), at(i, j));
+          }
+        lane::store(a, at(k, i));
+      }
     }
   }
 }
@@ -89,10 +162,14 @@ template <class L>
 void ltdl_lower_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
+  const int* begin = km.dof_ancestor_begin.data();
+  const int* ancestors = km.dof_ancestors.data();
   for (int k = 0; k < nv; ++k) {
     L xk = lane::load<L>(x + k * W);
-    for (int i = km.dof_parent[k]; i >= 0; i = km.dof_parent[i])
+    for (int t = begin[k]; t < begin[k + 1]; ++t) {
+      const int i = ancestors[t];
       xk = lane::fnmadd(lane::load<L>(H + (k * nv + i) * W), lane::load<L>(x + i * W), xk);
+    }
     lane::store(xk, x + k * W);
   }
 }
@@ -100,19 +177,37 @@ void ltdl_lower_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scal
 // Solves L^T y = b in place on x (nv per lane), with H from ltdl_factor:
 // the first pass of ltdl_solve, leaves to root. With `dofs` (n of them,
 // ascending, closed under dof_parent), b is zero outside them and the pass
-// touches only them (the others stay zero); without, every DOF.
-template <class L>
-void ltdl_transpose_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x,
-                          const int* dofs = nullptr, int n = -1) {
+// touches only them (the others stay zero); without, every DOF. R right-
+// hand sides at once, `stride` scalars apart: each entry of L is loaded
+// once for all of them, and their updates are independent of each other
+// (the same operations as R single solves, so the same bits).
+template <int R, class L>
+void ltdl_transpose_solve_many(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H,
+                               lane::scalar_t<L>* x, int stride, const int* dofs = nullptr, int n = -1) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
   if (!dofs) n = nv;
+  const int* begin = km.dof_ancestor_begin.data();
+  const int* ancestors = km.dof_ancestors.data();
   for (int i = n - 1; i >= 0; --i) {
     const int k = dofs ? dofs[i] : i;
-    const L yk = lane::load<L>(x + k * W);
-    for (int a = km.dof_parent[k]; a >= 0; a = km.dof_parent[a])
-      lane::store(lane::fnmadd(lane::load<L>(H + (k * nv + a) * W), yk, lane::load<L>(x + a * W)), x + a * W);
+    L yk[R];
+    for (int r = 0; r < R; ++r) yk[r] = lane::load<L>(x + r * stride + k * W);
+    for (int t = begin[k]; t < begin[k + 1]; ++t) {
+      const int a = ancestors[t];
+      const L Lka = lane::load<L>(H + (k * nv + a) * W);
+      for (int r = 0; r < R; ++r) {
+        lane::scalar_t<L>* xa = x + r * stride + a * W;
+        lane::store(lane::fnmadd(Lka, yk[r], lane::load<L>(xa)), xa);
+      }
+    }
   }
+}
+
+template <class L>
+void ltdl_transpose_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x,
+                          const int* dofs = nullptr, int n = -1) {
+  ltdl_transpose_solve_many<1, L>(km, H, x, 0, dofs, n);
 }
 
 // Solves (L^T D L) x = b in place on x (nv per lane), with H from ltdl_factor.

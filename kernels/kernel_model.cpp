@@ -24,6 +24,11 @@ KernelModel<T>::KernelModel(const Model& model)
     for (double p : params) default_inertia.push_back(static_cast<T>(p));
   }
   for (double a : model.dof_armature) dof_armature.push_back(static_cast<T>(a));
+  dof_ancestor_begin.push_back(0);
+  for (int k = 0; k < nv; ++k) {
+    for (int a = dof_parent[k]; a >= 0; a = dof_parent[a]) dof_ancestors.push_back(a);
+    dof_ancestor_begin.push_back(static_cast<int>(dof_ancestors.size()));
+  }
   for (const Eigen::Isometry3d& X : model.frame_placement) append_placement(frame_placement, X);
   // Leaves-to-root passes visit bodies from the last to the first: a body's
   // children come before it, the child right after it (if any) last.

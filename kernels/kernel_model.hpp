@@ -43,6 +43,11 @@ struct KernelModel {
   std::vector<int> body_dof_offset;   // (nbody)
   std::vector<T> body_placement;      // (nbody x 12): R row-major (9), p (3); joint frame in parent body
   std::vector<int> dof_parent;        // (nv)
+  // DOF k's ancestors (its dof_parent chain, nearest first) are
+  // dof_ancestors[dof_ancestor_begin[k], dof_ancestor_begin[k + 1]): the
+  // factor's loops read them as a list, not by chasing the chain
+  std::vector<int> dof_ancestor_begin;  // (nv + 1)
+  std::vector<int> dof_ancestors;
   std::vector<T> dof_armature;        // (nv)
   std::vector<int> frame_body;        // (nframe), -1: world
   std::vector<T> frame_placement;     // (nframe x 12), in the body frame (or the world)

@@ -115,32 +115,25 @@ TEST(IncomingJointForce, RootJointCarriesTheWeight) {
   EXPECT_LE((f.row(0).head<3>().transpose() - expected).norm(), 1e-9 * expected.norm());
 }
 
-// Builder models for the spherical and armature tests: a base fixed to the
-// world, then a "ball" on either one Spherical joint or three revolutes
+// Builder models for the spherical and armature tests (links from
+// test::massive_link): a base fixed to the world, then a "ball" on either one Spherical joint or three revolutes
 // (x, then y, then z) through two massless links, then a "tip" on a revolute.
-LinkSpec link(const std::string& name, const std::string& parent, JointType type, const Eigen::Vector3d& axis,
-              double mass, const Eigen::Vector3d& origin = Eigen::Vector3d::Zero()) {
-  LinkSpec l = test::joint_link(name, parent, type, axis, origin);
-  l.inertial.mass = mass;
-  l.inertial.origin.translation() = Eigen::Vector3d(0.05, 0.1, -0.2);
-  l.inertial.inertia = mass * Eigen::Vector3d(0.03, 0.04, 0.05).asDiagonal();
-  l.inertial.inertia(0, 1) = l.inertial.inertia(1, 0) = 0.002 * mass;
-  return l;
-}
-
 Model ball_model(bool spherical, double armature = 0.0) {
   ArticulationSpec a;
   a.name = spherical ? "spherical" : "revolutes";
-  a.links.push_back(link("base", "", JointType::Fixed, Eigen::Vector3d::UnitZ(), 0.0));
+  a.links.push_back(test::massive_link("base", "", JointType::Fixed, Eigen::Vector3d::UnitZ(), 0.0));
   std::string parent = "base";
   if (!spherical) {
-    a.links.push_back(link("gimbal_x", "base", JointType::Revolute, Eigen::Vector3d::UnitX(), 0.0, Eigen::Vector3d(0, 0, 1)));
-    a.links.push_back(link("gimbal_y", "gimbal_x", JointType::Revolute, Eigen::Vector3d::UnitY(), 0.0));
-    a.links.push_back(link("ball", "gimbal_y", JointType::Revolute, Eigen::Vector3d::UnitZ(), 2.0));
+    a.links.push_back(test::massive_link("gimbal_x", "base", JointType::Revolute,
+                                         Eigen::Vector3d::UnitX(), 0.0, Eigen::Vector3d(0, 0, 1)));
+    a.links.push_back(test::massive_link("gimbal_y", "gimbal_x", JointType::Revolute, Eigen::Vector3d::UnitY(), 0.0));
+    a.links.push_back(test::massive_link("ball", "gimbal_y", JointType::Revolute, Eigen::Vector3d::UnitZ(), 2.0));
   } else {
-    a.links.push_back(link("ball", "base", JointType::Spherical, Eigen::Vector3d::UnitZ(), 2.0, Eigen::Vector3d(0, 0, 1)));
+    a.links.push_back(test::massive_link("ball", "base", JointType::Spherical,
+                                         Eigen::Vector3d::UnitZ(), 2.0, Eigen::Vector3d(0, 0, 1)));
   }
-  a.links.push_back(link("tip", "ball", JointType::Revolute, Eigen::Vector3d(0.3, 1, 0.2), 1.0, Eigen::Vector3d(0.2, 0, -0.4)));
+  a.links.push_back(test::massive_link("tip", "ball", JointType::Revolute,
+                                       Eigen::Vector3d(0.3, 1, 0.2), 1.0, Eigen::Vector3d(0.2, 0, -0.4)));
   for (LinkSpec& l : a.links) l.joint.armature = armature;
   ModelBuilder builder;
   builder.add_articulation(a);

@@ -48,6 +48,19 @@ inline LinkSpec joint_link(const std::string& name, const std::string& parent, J
   return l;
 }
 
+// joint_link with a body: `mass` at an offset COM, with a full inertia
+// (one product of inertia nonzero), for the dynamics tests' small trees.
+inline LinkSpec massive_link(const std::string& name, const std::string& parent, JointType type,
+                             const Eigen::Vector3d& axis, double mass,
+                             const Eigen::Vector3d& origin = Eigen::Vector3d::Zero()) {
+  LinkSpec l = joint_link(name, parent, type, axis, origin);
+  l.inertial.mass = mass;
+  l.inertial.origin.translation() = Eigen::Vector3d(0.05, 0.1, -0.2);
+  l.inertial.inertia = mass * Eigen::Vector3d(0.03, 0.04, 0.05).asDiagonal();
+  l.inertial.inertia(0, 1) = l.inertial.inertia(1, 0) = 0.002 * mass;
+  return l;
+}
+
 
 inline const std::vector<std::string>& shared_model_names() {
   static const std::vector<std::string> names = {"ur5",          "panda",          "double_pendulum", "anymal_b",
