@@ -101,8 +101,9 @@ void ltdl_factor(const KernelModel<lane::scalar_t<L>>& km, lane::scalar_t<L>* H)
 // `implicit_diagonal`: w, what the ABA's policy added to each D). The
 // factorisation eliminates leaves first, and eliminating all of a body's
 // descendants from Mt leaves that body's articulated inertia IA (the Schur
-// complement of the subtree; RBDA sec. 7.3, and Jain's innovations
-// factorisation). So when it reaches body b, b's rows already hold
+// complement of the subtree; RBDA ch. 7, and the innovations factorisation
+// of A. Jain, "Robot and Multibody Dynamics", 2011). So when it reaches
+// body b, b's rows already hold
 //   its own block  S^T IA S + armature + w  (ABA's D),
 //   ancestor DOF i (of body j)  U^T ^bX_j S_i,
 // the transform rigid, as the DOFs in between are not eliminated yet; what
