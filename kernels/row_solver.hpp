@@ -120,6 +120,13 @@ inline void invert_diagonal(RowBlock<L>& rows, int first) {
   for (int r = first; r < rows.m; ++r) rows.inv_diag[r] = L(T(1)) / rows.D[r * rows.m + r];
 }
 
+// Per lane: true where row r, at zero impulse, needs none at velocity v.
+template <class L>
+inline lane::mask_t<L> row_slack(const RowBlock<L>& rows, int r, const L& v) {
+  return row_at_rest(v, rows.target[r], rows.target_hi[r], rows.lo[r], rows.hi[r], rows.error[r],
+                     rows.positional[r] != 0);
+}
+
 // Per lane: true where rows [0, count), at zero impulse, need none at the
 // impulses of rows [count, m) (their velocity in band, as row_at_rest asks
 // of v_free): then zero is their part of the solution. Reads no entry of D
@@ -127,9 +134,7 @@ inline void invert_diagonal(RowBlock<L>& rows, int first) {
 template <class L>
 inline lane::mask_t<L> rows_slack(const RowBlock<L>& rows, int count) {
   lane::mask_t<L> slack(true);
-  for (int r = 0; r < count; ++r)
-    slack = slack && row_at_rest(row_velocity(rows, r, count), rows.target[r], rows.target_hi[r], rows.lo[r],
-                                 rows.hi[r], rows.error[r], rows.positional[r] != 0);
+  for (int r = 0; r < count; ++r) slack = slack && row_slack(rows, r, row_velocity(rows, r, count));
   return slack;
 }
 
@@ -248,9 +253,10 @@ lane::mask_t<L> tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt,
             lane::min(positional_target(rows.error[r] + rows.displacement[r], inv_h, rows.rate[r]), rows.ceiling[r]),
             rows.floor[r]);
     gauss_seidel_sweep(rows, first);
-    if (first > 0) slack = slack && rows_slack(rows, first);
     for (int r = 0; r < m; ++r) {
-      rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r, first), rows.displacement[r]);
+      const L v = row_velocity(rows, r, first);
+      if (r < first) slack = slack && row_slack(rows, r, v);  // rows_slack's test, on the same velocities
+      rows.displacement[r] = lane::fmadd(h, v, rows.displacement[r]);
       rows.lambda_sum[r] = lane::fmadd(h, rows.lambda[r], rows.lambda_sum[r]);
     }
   }
