@@ -32,7 +32,8 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       contacts(contact.capacity, contact.rows_per_contact, km.nv, km.nbody, candidates), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv), lambda_start(joint_rows + contact.capacity * contact.rows_per_contact),
-      lambda_partial(2 * lambda_start.size()) {}
+      lambda_partial(2 * lambda_start.size()), needed(static_cast<int>(lambda_start.size())),
+      needed_source(lambda_start.size()), need(joint_rows), joint_impulse(joint_rows) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -483,52 +484,44 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
       ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
     else
       factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
-    // With the contacts first, the joint rows' own block of D (and their
-    // columns of Mt^-1) is needed only where some lane's limits act; PGS
-    // then also tests the joint rows against the contacts' velocity change
-    // rather than through D's coupling block.
-    const bool contacts_first = contacts_first_ && mc > 0 && mj > 0;
-    bool joint_block = !contacts_first;
-    if (joint_block) joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
-    bool coupling = false;
+    if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
+    // D's block of the joint rows (and their columns of Mt^-1), and its
+    // coupling with the contacts: built only when a solve needs them
+    bool joint_block = false, coupling = false;
     auto couple = [&] {
       if (!coupling && mc > 0 && mj > 0) contact_joint_delassus<L>(km_, H, row_specs_, rs.sigma, mj, contacts, rows);
       coupling = true;
     };
-    if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
-    if (!contacts_first || tgs) couple();
-    // rows [first, m) by PGS or TGS; the lanes where rows [0, first) stayed slack
-    // contacts.dv holds Mt^-1 J^T lambda of the final contact impulses
-    // (PGS's slack test computed it and no second phase followed)
-    bool dv_final = false;
-    auto solve = [&](int first) {
-      dv_final = false;
-      if (tgs) return tgs_solve(rows, options_.iterations, h, first);
-      pgs_solve(rows, options_.iterations, first);
-      if (first == 0) return lane::mask_t<L>(true);
-      contact_velocity_change<L>(km_, H, rows.lambda.data() + mj, contacts);
-      dv_final = true;
-      return joint_rows_slack<L>(row_specs_, rs, contacts.dv.data());
+    auto build_joint_block = [&] {
+      if (!joint_block) joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
+      joint_block = true;
+      couple();
     };
-    if (contacts_first) {
-      const lane::mask_t<L> slack = slack_first_phase(rows, mj, s.lambda_start, solve);
-      if (!lane::all<L>(slack)) {
-        joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
-        joint_block = true;
-        couple();
-        slack_second_phase(rows, slack, s.lambda_start, s.lambda_partial, solve);
-      }
-    } else {
-      solve(0);
-    }
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
-    if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
-    if (mc > 0) {
-      if (!dv_final) contact_velocity_change<L>(km_, H, rows.lambda.data() + mj, contacts);
-      for (int k = 0; k < nv; ++k) s.u1[k] = s.u1[k] + contacts.dv[k];
-    }
-    for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
-    if (tgs) {
+    if (!tgs) {
+      pgs_needed_rows(H, rest, s, build_joint_block);
+      for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k] + contacts.dv[k]);
+    } else {
+      // With the contacts first (no joint friction rows, which act nearly
+      // always), the joint rows are held at zero impulse in a first solve;
+      // lanes where they stayed slack at every substep keep it, the others
+      // take the solve of all rows.
+      if (contacts_first_ && mc > 0 && mj > 0) {
+        couple();
+        const lane::mask_t<L> slack = slack_first_phase(
+            rows, mj, s.lambda_start, [&](int first) { return tgs_solve(rows, options_.iterations, h, first); });
+        if (!lane::all<L>(slack)) {
+          build_joint_block();
+          slack_second_phase(rows, slack, s.lambda_start, s.lambda_partial,
+                             [&](int first) { return tgs_solve(rows, options_.iterations, h, first); });
+        }
+      } else {
+        build_joint_block();
+        tgs_solve(rows, options_.iterations, h);
+      }
+      if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
+      if (mc > 0) add_contact_impulses<L>(km_, H, rows.lambda.data() + mj, contacts, s.u1.data());
+      for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
       if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
       if (mc > 0) add_contact_impulses<L>(km_, H, rows.lambda_sum.data() + mj, contacts, s.displacement.data());
@@ -540,6 +533,80 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     if (tgs)
       for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
   }
+}
+
+// PGS on the rows a lane needs. A joint row needs an impulse in a lane
+// where its velocity leaves its band at zero impulse: first at the free
+// velocity (joint friction nearly always, a limit when the joint heads
+// past it), then at the velocities the solve leaves. Each round solves, by
+// PGS from the warm start, the contact rows with the joint rows some lane
+// needs; in a lane that does not need one of them, that row is held at zero
+// impulse (box [0, 0]), adds nothing to the other rows' velocities, and
+// Gauss-Seidel leaves it at zero: the lane's result is that of its own
+// rows, whatever the other lanes need. A lane where a row held at zero then
+// needs an impulse takes it, and every lane solves again, until none does;
+// each round adds a row, so there are at most as many rounds as joint rows,
+// and a lane's rows held at zero end the solve slack. A standing robot
+// solves its contacts alone; a humanoid with 84 joint rows, of which its
+// 20 friction rows and a few limits act, solves those rather than all 84.
+// `build_joint_block` builds D's joint rows' block and coupling the first
+// time a joint row is needed. Leaves the impulses in s.rows (joint rows
+// held at zero: 0) and their velocity change Mt^-1 J^T lambda in
+// s.contacts.dv.
+template <class L>
+template <class BuildJointBlock>
+void StepEngine<L>::pgs_needed_rows(const T* H, const lane::mask_t<L>& rest, Scratch& s,
+                                    BuildJointBlock&& build_joint_block) const {
+  JointRowScratch<L>& rs = s.rows;
+  RowBlock<L>& rows = rs.rows;
+  RowBlock<L>& sub = s.needed;
+  ContactScratch<L>& contacts = s.contacts;
+  const int mj = static_cast<int>(row_specs_.size()), m = rows.m;
+  const L zero(T(0));
+  for (int r = 0; r < mj; ++r) s.need[r] = !rest && !row_slack(rows, r, rows.v_free[r]);
+  int nj = 0;
+  for (bool grew = true; grew;) {
+    nj = 0;
+    for (int r = 0; r < mj; ++r)
+      if (lane::any<L>(s.need[r])) s.needed_source[nj++] = r;
+    if (nj > 0) build_joint_block();
+    const int n = nj + m - mj;
+    for (int a = nj; a < n; ++a) s.needed_source[a] = mj + a - nj;
+    sub.m = n;
+    for (int a = 0; a < n; ++a) {
+      const int r = s.needed_source[a];
+      const bool joint = a < nj;
+      sub.bound_row[a] = rows.bound_row[r] < 0 ? -1 : rows.bound_row[r] - mj + nj;  // contact friction: its normal
+      sub.mu[a] = rows.mu[r];
+      sub.cone[a] = rows.cone[r];
+      sub.v_free[a] = rows.v_free[r];
+      sub.target[a] = rows.target[r];
+      sub.target_hi[a] = rows.target_hi[r];
+      sub.lo[a] = joint ? lane::select(s.need[r], rows.lo[r], zero) : rows.lo[r];
+      sub.hi[a] = joint ? lane::select(s.need[r], rows.hi[r], zero) : rows.hi[r];
+      sub.lambda[a] = joint ? lane::select(s.need[r], rows.lambda[r], zero) : rows.lambda[r];
+      for (int b = 0; b < n; ++b) sub.D[a * n + b] = rows.D[r * m + s.needed_source[b]];
+    }
+    pgs_solve(sub, options_.iterations);
+    // every joint row's velocity at this solution, through the DOFs
+    contact_velocity_change<L>(km_, H, sub.lambda.data() + nj, contacts);
+    if (nj > 0) {
+      for (int r = 0; r < mj; ++r) s.joint_impulse[r] = zero;
+      for (int a = 0; a < nj; ++a) s.joint_impulse[s.needed_source[a]] = sub.lambda[a];
+      add_row_impulses<L>(km_, row_specs_, rs, s.joint_impulse, contacts.dv.data());
+    }
+    grew = false;
+    for (int r = 0; r < mj; ++r) {
+      const lane::mask_t<L> newly = !rest && !s.need[r] && !joint_row_slack<L>(row_specs_, rs, r, contacts.dv.data());
+      if (lane::any<L>(newly)) {
+        s.need[r] = s.need[r] || newly;
+        grew = true;
+      }
+    }
+  }
+  for (int r = 0; r < mj; ++r) rows.lambda[r] = zero;
+  for (int a = 0; a < nj; ++a) rows.lambda[s.needed_source[a]] = sub.lambda[a];
+  for (int i = mj; i < m; ++i) rows.lambda[i] = sub.lambda[nj + i - mj];
 }
 
 // RaiSim's torque over the step by source, with dv = v1 - v0:

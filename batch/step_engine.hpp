@@ -93,6 +93,13 @@ class StepEngine final : public Simulator::Engine {
     std::vector<L> q_stage, v_stage;  // RK4 stage state
     std::vector<L> v_sum, a_sum;      // RK4 weighted sums
     std::vector<L> lambda_start, lambda_partial;  // (rows, 2 rows) slack_first_phase's scratch
+    // pgs_needed_rows's: the rows it solves (the joint rows some lane
+    // needs, then the contact rows), each one's row in `rows`, and per
+    // joint row the lanes that need it and its impulse
+    RowBlock<L> needed;
+    std::vector<int> needed_source;
+    std::vector<lane::mask_t<L>> need;
+    std::vector<L> joint_impulse;
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
 
@@ -113,6 +120,9 @@ class StepEngine final : public Simulator::Engine {
   // Solver rows (joint rows, then the contacts found): s.u1 from s.u1
   // (= u*), and the displacement for TGS.
   void solve_rows(int block, const T* q, T h, Scratch& s);
+  // PGS on the rows each lane needs (see the definition).
+  template <class BuildJointBlock>
+  void pgs_needed_rows(const T* H, const lane::mask_t<L>& rest, Scratch& s, BuildJointBlock&& build_joint_block) const;
   ContactArrays<T> contact_arrays(int block);
   int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
   void make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings);

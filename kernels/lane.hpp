@@ -141,6 +141,11 @@ inline bool all(const mask_t<L>& m) {
   else return xsimd::all(m);
 }
 template <class L>
+inline bool any(const mask_t<L>& m) {
+  if constexpr (is_scalar_v<L>) return m;
+  else return xsimd::any(m);
+}
+template <class L>
 inline L clamp(const L& x, const L& lo, const L& hi) {
   return min(max(x, lo), hi);
 }
