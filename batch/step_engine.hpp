@@ -147,7 +147,7 @@ class StepEngine final : public Simulator::Engine {
   BatchArray<T> model_inertia_;  // one block of the model's inertial parameters
   std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
   bool profiling_ = false;
-  // The solver takes the contact rows first, the joint rows held slack
+  // TGS takes the contact rows first, the joint rows held slack
   // (slack_first_phase); not with joint friction rows of nonzero friction,
   // which act whenever a joint moves.
   bool contacts_first_ = false;

@@ -95,24 +95,16 @@ lane::mask_t<L> joint_rows_at_rest(const std::vector<JointRowSpec<lane::scalar_t
   return rest;
 }
 
-// Per lane: true where joint row r (joint_rows_slack: every joint row)
-// built by build_joint_rows, at zero impulse, needs none once other rows'
-// impulses change the velocity by dv (nv): rows_slack's test, with a row's
-// coupling to the others read from dv (sigma_r dv[dof_r]) instead of from D.
+// Per lane: true where joint row r built by build_joint_rows, at zero
+// impulse, needs none once other rows' impulses change the velocity by dv
+// (nv): row_slack's test, with the row's coupling to the others read from
+// dv (sigma_r dv[dof_r]) instead of from D.
 template <class L>
 lane::mask_t<L> joint_row_slack(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const JointRowScratch<L>& s,
                                 int r, const L* dv) {
   const RowBlock<L>& rows = s.rows;
   const L v = lane::fmadd(s.sigma[r], dv[specs[r].dof], rows.v_free[r]);
   return row_slack(rows, r, v);
-}
-
-template <class L>
-lane::mask_t<L> joint_rows_slack(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const JointRowScratch<L>& s,
-                                 const L* dv) {
-  lane::mask_t<L> slack(true);
-  for (std::size_t r = 0; r < specs.size(); ++r) slack = slack && joint_row_slack(specs, s, static_cast<int>(r), dv);
-  return slack;
 }
 
 // Stores the rows of one block for the solver.
