@@ -31,9 +31,9 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
     : ws(km), terms(km.nv), rows(joint_rows + contact.capacity * contact.rows_per_contact, columns, km.nv),
       contacts(contact.capacity, contact.rows_per_contact, km.nv, km.nbody, candidates), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
-      v_sum(km.nv), a_sum(km.nv), lambda_start(joint_rows + contact.capacity * contact.rows_per_contact),
-      lambda_partial(2 * lambda_start.size()), needed(static_cast<int>(lambda_start.size())),
-      needed_source(lambda_start.size()), need(joint_rows), joint_impulse(joint_rows) {}
+      v_sum(km.nv), a_sum(km.nv), needed(joint_rows + contact.capacity * contact.rows_per_contact),
+      needed_source(needed.m), need(joint_rows), violated(joint_rows), joint_impulse(joint_rows),
+      held_displacement(joint_rows) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -90,9 +90,6 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
       add_row(JointRowKind::Friction, k, d.friction, 0);
   }
   batch_.impulse = BatchArray<T>(copies, static_cast<int>(row_specs_.size()), kWidth);
-  contacts_first_ = std::none_of(row_specs_.begin(), row_specs_.end(), [](const JointRowSpec<T>& r) {
-                      return r.kind == JointRowKind::Friction && r.a > 0;  // a row of zero friction never acts
-                    });
   if (options.record_applied_torque)
     for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
       *a = BatchArray<T>(copies, nv, kWidth);
@@ -498,27 +495,10 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
       couple();
     };
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
+    solve_needed_rows(H, h, rest, s, build_joint_block);
     if (!tgs) {
-      pgs_needed_rows(H, rest, s, build_joint_block);
       for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k] + contacts.dv[k]);
     } else {
-      // With the contacts first (no joint friction rows, which act nearly
-      // always), the joint rows are held at zero impulse in a first solve;
-      // lanes where they stayed slack at every substep keep it, the others
-      // take the solve of all rows.
-      if (contacts_first_ && mc > 0 && mj > 0) {
-        couple();
-        const lane::mask_t<L> slack = slack_first_phase(
-            rows, mj, s.lambda_start, [&](int first) { return tgs_solve(rows, options_.iterations, h, first); });
-        if (!lane::all<L>(slack)) {
-          build_joint_block();
-          slack_second_phase(rows, slack, s.lambda_start, s.lambda_partial,
-                             [&](int first) { return tgs_solve(rows, options_.iterations, h, first); });
-        }
-      } else {
-        build_joint_block();
-        tgs_solve(rows, options_.iterations, h);
-      }
       if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
       if (mc > 0) add_contact_impulses<L>(km_, H, rows.lambda.data() + mj, contacts, s.u1.data());
       for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
@@ -535,36 +515,46 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
   }
 }
 
-// PGS on the rows a lane needs. A joint row needs an impulse in a lane
-// where its velocity leaves its band at zero impulse: first at the free
-// velocity (joint friction nearly always, a limit when the joint heads
-// past it), then at the velocities the solve leaves. Each round solves, by
-// PGS from the warm start, the contact rows with the joint rows some lane
-// needs; in a lane that does not need one of them, that row is held at zero
-// impulse (box [0, 0]), adds nothing to the other rows' velocities, and
-// Gauss-Seidel leaves it at zero: the lane's result is that of its own
-// rows, whatever the other lanes need. A lane where a row held at zero then
-// needs an impulse takes it, and every lane solves again, until none does;
-// each round adds a row, so there are at most as many rounds as joint rows,
-// and a lane's rows held at zero end the solve slack. A standing robot
-// solves its contacts alone; a humanoid with 84 joint rows, of which its
-// 20 friction rows and a few limits act, solves those rather than all 84.
+// PGS or TGS on the rows a lane needs. A joint row needs an impulse in a
+// lane where its velocity leaves its band at zero impulse: first at the
+// free velocity (joint friction nearly always, a limit when the joint heads
+// past it), then at the velocities the solve leaves (for TGS at any
+// substep, its target following its displacement). Each round solves, from
+// the warm start, the contact rows with the joint rows some lane needs; in
+// a lane that does not need one of them, that row is held at zero impulse
+// (box [0, 0]), adds nothing to the other rows' velocities, and the sweeps
+// leave it at zero: the lane's result is that of its own rows, whatever the
+// other lanes need. A lane where a row held at zero then needs an impulse
+// takes it, and every lane solves again, until none does; each round adds
+// a row, so there are at most as many rounds as joint rows, and a lane's
+// rows held at zero end the solve slack. A standing robot solves its
+// contacts alone; a humanoid with 84 joint rows, of which its 20 friction
+// rows and a few limits act, solves those rather than all 84.
 // `build_joint_block` builds D's joint rows' block and coupling the first
-// time a joint row is needed. Leaves the impulses in s.rows (joint rows
-// held at zero: 0) and their velocity change Mt^-1 J^T lambda in
-// s.contacts.dv.
+// time a joint row is needed. Leaves the impulses (and TGS's lambda_sum)
+// in s.rows, 0 on the joint rows held at zero; for PGS their velocity
+// change Mt^-1 J^T lambda in s.contacts.dv.
 template <class L>
 template <class BuildJointBlock>
-void StepEngine<L>::pgs_needed_rows(const T* H, const lane::mask_t<L>& rest, Scratch& s,
-                                    BuildJointBlock&& build_joint_block) const {
+void StepEngine<L>::solve_needed_rows(const T* H, T h, const lane::mask_t<L>& rest, Scratch& s,
+                                      BuildJointBlock&& build_joint_block) const {
   JointRowScratch<L>& rs = s.rows;
   RowBlock<L>& rows = rs.rows;
   RowBlock<L>& sub = s.needed;
   ContactScratch<L>& contacts = s.contacts;
-  const int mj = static_cast<int>(row_specs_.size()), m = rows.m;
-  const L zero(T(0));
+  const bool tgs = options_.solver == SolverType::TGS;
+  const int mj = static_cast<int>(row_specs_.size()), m = rows.m, iterations = options_.iterations;
+  const L zero(T(0)), substep(h / T(iterations)), inv_substep(T(iterations) / h);
+  int nj = 0;  // the joint rows in `sub`, before its contact rows
+  // contacts.dv = Mt^-1 J^T lambda of sub's impulses
+  auto velocity_change = [&] {
+    contact_velocity_change<L>(km_, H, sub.lambda.data() + nj, contacts);
+    if (nj == 0) return;
+    for (int r = 0; r < mj; ++r) s.joint_impulse[r] = zero;
+    for (int a = 0; a < nj; ++a) s.joint_impulse[s.needed_source[a]] = sub.lambda[a];
+    add_row_impulses<L>(km_, row_specs_, rs, s.joint_impulse, contacts.dv.data());
+  };
   for (int r = 0; r < mj; ++r) s.need[r] = !rest && !row_slack(rows, r, rows.v_free[r]);
-  int nj = 0;
   for (bool grew = true; grew;) {
     nj = 0;
     for (int r = 0; r < mj; ++r)
@@ -579,6 +569,11 @@ void StepEngine<L>::pgs_needed_rows(const T* H, const lane::mask_t<L>& rest, Scr
       sub.bound_row[a] = rows.bound_row[r] < 0 ? -1 : rows.bound_row[r] - mj + nj;  // contact friction: its normal
       sub.mu[a] = rows.mu[r];
       sub.cone[a] = rows.cone[r];
+      sub.positional[a] = rows.positional[r];
+      sub.rate[a] = rows.rate[r];
+      sub.floor[a] = rows.floor[r];
+      sub.ceiling[a] = rows.ceiling[r];
+      sub.error[a] = rows.error[r];
       sub.v_free[a] = rows.v_free[r];
       sub.target[a] = rows.target[r];
       sub.target_hi[a] = rows.target_hi[r];
@@ -587,26 +582,43 @@ void StepEngine<L>::pgs_needed_rows(const T* H, const lane::mask_t<L>& rest, Scr
       sub.lambda[a] = joint ? lane::select(s.need[r], rows.lambda[r], zero) : rows.lambda[r];
       for (int b = 0; b < n; ++b) sub.D[a * n + b] = rows.D[r * m + s.needed_source[b]];
     }
-    pgs_solve(sub, options_.iterations);
-    // every joint row's velocity at this solution, through the DOFs
-    contact_velocity_change<L>(km_, H, sub.lambda.data() + nj, contacts);
-    if (nj > 0) {
-      for (int r = 0; r < mj; ++r) s.joint_impulse[r] = zero;
-      for (int a = 0; a < nj; ++a) s.joint_impulse[s.needed_source[a]] = sub.lambda[a];
-      add_row_impulses<L>(km_, row_specs_, rs, s.joint_impulse, contacts.dv.data());
+    // s.violated[r]: lanes where joint row r, held at zero, left its band
+    if (!tgs) {
+      pgs_solve(sub, iterations);
+      velocity_change();
+      for (int r = 0; r < mj; ++r) s.violated[r] = !joint_row_slack<L>(row_specs_, rs, r, contacts.dv.data());
+    } else {
+      for (int r = 0; r < mj; ++r) {
+        s.violated[r] = lane::mask_t<L>(false);
+        s.held_displacement[r] = zero;
+      }
+      tgs_solve(sub, iterations, h, [&] {
+        velocity_change();
+        for (int r = 0; r < mj; ++r) {
+          const L v = lane::fmadd(rs.sigma[r], contacts.dv[row_specs_[r].dof], rows.v_free[r]);
+          const L target = rows.positional[r] ? tgs_target(rows, r, s.held_displacement[r], inv_substep) : rows.target[r];
+          const L target_hi = rows.positional[r] ? target : rows.target_hi[r];
+          s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r],
+                                                        rows.positional[r] != 0);
+          s.held_displacement[r] = lane::fmadd(substep, v, s.held_displacement[r]);
+        }
+      });
     }
     grew = false;
     for (int r = 0; r < mj; ++r) {
-      const lane::mask_t<L> newly = !rest && !s.need[r] && !joint_row_slack<L>(row_specs_, rs, r, contacts.dv.data());
+      const lane::mask_t<L> newly = !rest && !s.need[r] && s.violated[r];
       if (lane::any<L>(newly)) {
         s.need[r] = s.need[r] || newly;
         grew = true;
       }
     }
   }
-  for (int r = 0; r < mj; ++r) rows.lambda[r] = zero;
-  for (int a = 0; a < nj; ++a) rows.lambda[s.needed_source[a]] = sub.lambda[a];
-  for (int i = mj; i < m; ++i) rows.lambda[i] = sub.lambda[nj + i - mj];
+  for (int r = 0; r < mj; ++r) rows.lambda[r] = rows.lambda_sum[r] = zero;
+  for (int a = 0; a < nj + m - mj; ++a) {
+    const int r = s.needed_source[a];
+    rows.lambda[r] = sub.lambda[a];
+    rows.lambda_sum[r] = sub.lambda_sum[a];
+  }
 }
 
 // RaiSim's torque over the step by source, with dv = v1 - v0:

@@ -92,14 +92,14 @@ class StepEngine final : public Simulator::Engine {
     std::vector<L> q_next;          // (nq) the step's new positions
     std::vector<L> q_stage, v_stage;  // RK4 stage state
     std::vector<L> v_sum, a_sum;      // RK4 weighted sums
-    std::vector<L> lambda_start, lambda_partial;  // (rows, 2 rows) slack_first_phase's scratch
-    // pgs_needed_rows's: the rows it solves (the joint rows some lane
+    // solve_needed_rows's: the rows it solves (the joint rows some lane
     // needs, then the contact rows), each one's row in `rows`, and per
-    // joint row the lanes that need it and its impulse
+    // joint row the lanes that need it, those where it left its band held
+    // at zero, its impulse and (TGS) its displacement held at zero
     RowBlock<L> needed;
     std::vector<int> needed_source;
-    std::vector<lane::mask_t<L>> need;
-    std::vector<L> joint_impulse;
+    std::vector<lane::mask_t<L>> need, violated;
+    std::vector<L> joint_impulse, held_displacement;
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
 
@@ -120,9 +120,10 @@ class StepEngine final : public Simulator::Engine {
   // Solver rows (joint rows, then the contacts found): s.u1 from s.u1
   // (= u*), and the displacement for TGS.
   void solve_rows(int block, const T* q, T h, Scratch& s);
-  // PGS on the rows each lane needs (see the definition).
+  // PGS or TGS on the rows each lane needs (see the definition).
   template <class BuildJointBlock>
-  void pgs_needed_rows(const T* H, const lane::mask_t<L>& rest, Scratch& s, BuildJointBlock&& build_joint_block) const;
+  void solve_needed_rows(const T* H, T h, const lane::mask_t<L>& rest, Scratch& s,
+                         BuildJointBlock&& build_joint_block) const;
   ContactArrays<T> contact_arrays(int block);
   int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
   void make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings);
@@ -147,10 +148,6 @@ class StepEngine final : public Simulator::Engine {
   BatchArray<T> model_inertia_;  // one block of the model's inertial parameters
   std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
   bool profiling_ = false;
-  // TGS takes the contact rows first, the joint rows held slack
-  // (slack_first_phase); not with joint friction rows of nonzero friction,
-  // which act whenever a joint moves.
-  bool contacts_first_ = false;
 };
 
 }  // namespace lockstep

@@ -103,21 +103,20 @@ inline lane::mask_t<L> rows_at_rest(const RowBlock<L>& rows) {
   return rest;
 }
 
-// Row r's velocity from the impulses of rows [first, m) (those before
-// `first` are zero when a solve leaves them out).
+// Row r's velocity at the impulses lambda.
 template <class L>
-inline L row_velocity(const RowBlock<L>& rows, int r, int first = 0) {
+inline L row_velocity(const RowBlock<L>& rows, int r) {
   const L* Dr = &rows.D[r * rows.m];
   L v = rows.v_free[r];
-  for (int c = first; c < rows.m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
+  for (int c = 0; c < rows.m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
   return v;
 }
 
-// 1 / D_rr of rows [first, m), once per solve rather than once per sweep.
+// 1 / D_rr, once per solve rather than once per sweep.
 template <class L>
-inline void invert_diagonal(RowBlock<L>& rows, int first) {
+inline void invert_diagonal(RowBlock<L>& rows) {
   using T = lane::scalar_t<L>;
-  for (int r = first; r < rows.m; ++r) rows.inv_diag[r] = L(T(1)) / rows.D[r * rows.m + r];
+  for (int r = 0; r < rows.m; ++r) rows.inv_diag[r] = L(T(1)) / rows.D[r * rows.m + r];
 }
 
 // Per lane: true where row r, at zero impulse, needs none at velocity v.
@@ -127,32 +126,21 @@ inline lane::mask_t<L> row_slack(const RowBlock<L>& rows, int r, const L& v) {
                      rows.positional[r] != 0);
 }
 
-// Per lane: true where rows [0, count), at zero impulse, need none at the
-// impulses of rows [count, m) (their velocity in band, as row_at_rest asks
-// of v_free): then zero is their part of the solution. Reads no entry of D
-// among rows [0, count).
-template <class L>
-inline lane::mask_t<L> rows_slack(const RowBlock<L>& rows, int count) {
-  lane::mask_t<L> slack(true);
-  for (int r = 0; r < count; ++r) slack = slack && row_slack(rows, r, row_velocity(rows, r, count));
-  return slack;
-}
-
-// One Gauss-Seidel sweep over rows [first, m); v_r recomputed from their
-// impulses. Needs invert_diagonal.
+// One Gauss-Seidel sweep; v_r recomputed from the impulses. Needs
+// invert_diagonal.
 // A cone pair is updated together: each row's unclamped step at the pair's
 // current velocities, then the pair projected radially onto the disc of
 // radius mu lambda_bound (Coulomb's isotropic cone, not a pyramid).
 template <class L>
-inline void gauss_seidel_sweep(RowBlock<L>& rows, int first = 0) {
+inline void gauss_seidel_sweep(RowBlock<L>& rows) {
   using T = lane::scalar_t<L>;
   const int m = rows.m;
-  for (int r = first; r < m; ++r) {
+  for (int r = 0; r < m; ++r) {
     const L inv_d = rows.inv_diag[r];
     if (rows.cone[r]) {
       const L inv_d2 = rows.inv_diag[r + 1];
-      L a = rows.lambda[r] - row_velocity(rows, r, first) * inv_d;
-      L b = rows.lambda[r + 1] - row_velocity(rows, r + 1, first) * inv_d2;
+      L a = rows.lambda[r] - row_velocity(rows, r) * inv_d;
+      L b = rows.lambda[r + 1] - row_velocity(rows, r + 1) * inv_d2;
       const L radius = rows.mu[r] * rows.lambda[rows.bound_row[r]];
       const L square = a * a + b * b;
       // a block whose lanes all lie well inside their cones (radius^2 with
@@ -170,7 +158,7 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows, int first = 0) {
       ++r;
       continue;
     }
-    const L v = row_velocity(rows, r, first);
+    const L v = row_velocity(rows, r);
     L lo = rows.lo[r], hi = rows.hi[r];
     if (rows.bound_row[r] >= 0) {
       hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
@@ -180,63 +168,30 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows, int first = 0) {
   }
 }
 
-// PGS on rows [first, m), the rows before them held at zero impulse.
+// PGS: `iterations` sweeps from the warm start in lambda.
 template <class L>
-void pgs_solve(RowBlock<L>& rows, int iterations, int first = 0) {
-  invert_diagonal(rows, first);
-  for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(rows, first);
+void pgs_solve(RowBlock<L>& rows, int iterations) {
+  invert_diagonal(rows);
+  for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(rows);
 }
 
-// A solve in two phases, each lane's result its own: rows [first, m)
-// alone, rows [0, first) held at zero impulse; a lane where those then need
-// an impulse (rows_slack; for TGS at any substep) takes the solve of all
-// rows from the same start instead, run for the block only when some lane
-// needs it. Where they stay slack, zero impulse satisfies them, so the first
-// phase's result solves the whole problem (to the iterations' tolerance).
-// The step puts the joint rows first: a standing robot's limits are slack
-// nearly always, and every sweep then skips their share of D, whose block
-// [0, first) x [0, first) the first phase does not read (the step builds it
-// only for a second phase).
-//
-// solve(first) runs PGS or TGS on rows [first, m) and returns the lanes
-// where rows [0, first) stayed slack. Phase one keeps the warm start in
-// `start` (m rows); phase two (when not all lanes stayed slack) solves all
-// rows from `start` and keeps phase one's impulses (and lambda_sum) in the
-// slack lanes; `partial`: 2 m rows of scratch.
-template <class L, class Solve>
-lane::mask_t<L> slack_first_phase(RowBlock<L>& rows, int first, std::vector<L>& start, Solve&& solve) {
-  using T = lane::scalar_t<L>;
-  for (int r = 0; r < rows.m; ++r) start[r] = rows.lambda[r];
-  for (int r = 0; r < first; ++r) rows.lambda[r] = L(T(0));
-  return solve(first);
-}
-
-template <class L, class Solve>
-void slack_second_phase(RowBlock<L>& rows, const lane::mask_t<L>& slack, const std::vector<L>& start,
-                        std::vector<L>& partial, Solve&& solve) {
-  const int m = rows.m;
-  for (int r = 0; r < m; ++r) {
-    partial[r] = rows.lambda[r];
-    partial[m + r] = rows.lambda_sum[r];
-    rows.lambda[r] = start[r];
-  }
-  solve(0);
-  for (int r = 0; r < m; ++r) {
-    rows.lambda[r] = lane::select(slack, partial[r], rows.lambda[r]);
-    rows.lambda_sum[r] = lane::select(slack, partial[m + r], rows.lambda_sum[r]);
-  }
+// A positional row's target at a TGS substep, its error advanced by the
+// row's displacement so far (at its own correction rate, between its floor
+// and ceiling); inv_h: 1 / substep.
+template <class L>
+inline L tgs_target(const RowBlock<L>& rows, int r, const L& displacement, const L& inv_h) {
+  return lane::max(lane::min(positional_target(rows.error[r] + displacement, inv_h, rows.rate[r]), rows.ceiling[r]),
+                   rows.floor[r]);
 }
 
 // TGS over `substeps` substeps of h = dt / substeps: before each sweep the
 // positional rows' targets follow their error advanced by the displacement
-// so far (at their own correction rate, between their floor and ceiling);
-// after it every row's displacement grows by h v_r and lambda_sum by h
-// lambda_r (the integrator moves positions by h v_free plus the
-// lambda_sum-mapped impulses). Like pgs_solve, it may leave rows [0, first)
-// at zero impulse; it then returns the lanes where they stayed slack at
-// every substep (all lanes when first is 0).
-template <class L>
-lane::mask_t<L> tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, int first = 0) {
+// so far (tgs_target); after it every row's displacement grows by h v_r and
+// lambda_sum by h lambda_r (the integrator moves positions by h v_free plus
+// the lambda_sum-mapped impulses), and `after_substep()` runs (the caller's
+// look at the impulses of the substep).
+template <class L, class AfterSubstep>
+void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, AfterSubstep&& after_substep) {
   using T = lane::scalar_t<L>;
   const int m = rows.m;
   const L h(dt / T(substeps)), inv_h(T(substeps) / dt);
@@ -244,23 +199,22 @@ lane::mask_t<L> tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt,
     rows.displacement[r] = L(T(0));
     rows.lambda_sum[r] = L(T(0));
   }
-  invert_diagonal(rows, first);
-  lane::mask_t<L> slack(true);
+  invert_diagonal(rows);
   for (int k = 0; k < substeps; ++k) {
     for (int r = 0; r < m; ++r)
-      if (rows.positional[r])
-        rows.target[r] = rows.target_hi[r] = lane::max(
-            lane::min(positional_target(rows.error[r] + rows.displacement[r], inv_h, rows.rate[r]), rows.ceiling[r]),
-            rows.floor[r]);
-    gauss_seidel_sweep(rows, first);
+      if (rows.positional[r]) rows.target[r] = rows.target_hi[r] = tgs_target(rows, r, rows.displacement[r], inv_h);
+    gauss_seidel_sweep(rows);
     for (int r = 0; r < m; ++r) {
-      const L v = row_velocity(rows, r, first);
-      if (r < first) slack = slack && row_slack(rows, r, v);  // rows_slack's test, on the same velocities
-      rows.displacement[r] = lane::fmadd(h, v, rows.displacement[r]);
+      rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r), rows.displacement[r]);
       rows.lambda_sum[r] = lane::fmadd(h, rows.lambda[r], rows.lambda_sum[r]);
     }
+    after_substep();
   }
-  return slack;
+}
+
+template <class L>
+void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt) {
+  tgs_solve(rows, substeps, dt, [] {});
 }
 
 }  // namespace lockstep
