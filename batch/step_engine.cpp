@@ -484,15 +484,12 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
     // D's block of the joint rows (and their columns of Mt^-1), and its
     // coupling with the contacts: built only when a solve needs them
-    bool joint_block = false, coupling = false;
-    auto couple = [&] {
-      if (!coupling && mc > 0 && mj > 0) contact_joint_delassus<L>(km_, H, row_specs_, rs.sigma, mj, contacts, rows);
-      coupling = true;
-    };
+    bool joint_block = false;
     auto build_joint_block = [&] {
-      if (!joint_block) joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
+      if (joint_block) return;
+      joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
+      if (mc > 0) contact_joint_delassus<L>(km_, H, row_specs_, rs.sigma, mj, contacts, rows);
       joint_block = true;
-      couple();
     };
     for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
     solve_needed_rows(H, h, rest, s, build_joint_block);
@@ -595,7 +592,7 @@ void StepEngine<L>::solve_needed_rows(const T* H, T h, const lane::mask_t<L>& re
       tgs_solve(sub, iterations, h, [&] {
         velocity_change();
         for (int r = 0; r < mj; ++r) {
-          const L v = lane::fmadd(rs.sigma[r], contacts.dv[row_specs_[r].dof], rows.v_free[r]);
+          const L v = joint_row_velocity<L>(row_specs_, rs, r, contacts.dv.data());
           const L target = rows.positional[r] ? tgs_target(rows, r, s.held_displacement[r], inv_substep) : rows.target[r];
           const L target_hi = rows.positional[r] ? target : rows.target_hi[r];
           s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r],
@@ -617,7 +614,7 @@ void StepEngine<L>::solve_needed_rows(const T* H, T h, const lane::mask_t<L>& re
   for (int a = 0; a < nj + m - mj; ++a) {
     const int r = s.needed_source[a];
     rows.lambda[r] = sub.lambda[a];
-    rows.lambda_sum[r] = sub.lambda_sum[a];
+    if (tgs) rows.lambda_sum[r] = sub.lambda_sum[a];
   }
 }
 

@@ -95,16 +95,21 @@ lane::mask_t<L> joint_rows_at_rest(const std::vector<JointRowSpec<lane::scalar_t
   return rest;
 }
 
-// Per lane: true where joint row r built by build_joint_rows, at zero
-// impulse, needs none once other rows' impulses change the velocity by dv
-// (nv): row_slack's test, with the row's coupling to the others read from
-// dv (sigma_r dv[dof_r]) instead of from D.
+// Joint row r's velocity (built by build_joint_rows) once other rows'
+// impulses change the DOF velocities by dv (nv): its coupling to the others
+// read from dv (sigma_r dv[dof_r]) instead of from D.
+template <class L>
+L joint_row_velocity(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const JointRowScratch<L>& s, int r,
+                     const L* dv) {
+  return lane::fmadd(s.sigma[r], dv[specs[r].dof], s.rows.v_free[r]);
+}
+
+// Per lane: true where joint row r, at zero impulse, needs none at that
+// velocity (row_slack's test).
 template <class L>
 lane::mask_t<L> joint_row_slack(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const JointRowScratch<L>& s,
                                 int r, const L* dv) {
-  const RowBlock<L>& rows = s.rows;
-  const L v = lane::fmadd(s.sigma[r], dv[specs[r].dof], rows.v_free[r]);
-  return row_slack(rows, r, v);
+  return row_slack(s.rows, r, joint_row_velocity(specs, s, r, dv));
 }
 
 // Stores the rows of one block for the solver.
