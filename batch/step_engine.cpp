@@ -110,8 +110,10 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   if (plan.contacts) candidates = set_up_contacts(copies, options.contacts, pairs);
   else make_contact_arrays(copies, 0, 0, options.contacts);
   const int rows = static_cast<int>(row_specs_.size()), columns = static_cast<int>(column_dof_.size());
-  scratch_ = std::make_unique<tbb::enumerable_thread_specific<Scratch>>(
-      [this, rows, columns, candidates] { return Scratch(km_, rows, columns, contact_params_, candidates); });
+  scratch_ = std::make_unique<tbb::enumerable_thread_specific<ScratchPair>>([this, rows, columns, candidates] {
+    return ScratchPair{{Scratch(km_, rows, columns, contact_params_, candidates),
+                        Scratch(km_, rows, columns, contact_params_, candidates)}};
+  });
 }
 
 // The pairs in the kernels' precision, the contact parameters, the per-copy
@@ -206,27 +208,32 @@ void StepEngine<L>::set_plan(const StepPlan& plan) {
 template <class L>
 void StepEngine<L>::step(int substeps, double dt) {
   const T h = static_cast<T>(dt / substeps);
-  tbb::parallel_for(tbb::blocked_range<int>(0, batch_.state.q.blocks()), [&](const tbb::blocked_range<int>& range) {
-    Scratch& s = scratch_->local();
-    s.clock.on = profiling_;
-    for (int b = range.begin(); b != range.end(); ++b)
-      for (int k = 0; k < substeps; ++k) step_block(b, h, s);
+  // blocks in pairs (the last one alone when their count is odd), whose
+  // solves run side by side
+  const int blocks = batch_.state.q.blocks();
+  tbb::parallel_for(tbb::blocked_range<int>(0, (blocks + 1) / 2), [&](const tbb::blocked_range<int>& range) {
+    ScratchPair& pair = scratch_->local();
+    for (Scratch& s : pair.s) s.clock.on = profiling_;
+    for (int p = range.begin(); p != range.end(); ++p)
+      for (int k = 0; k < substeps; ++k) step_blocks(2 * p, std::min(2, blocks - 2 * p), h, pair.s);
   });
 }
 
 template <class L>
 void StepEngine<L>::set_profiling(bool on) {
-  for (Scratch& s : *scratch_) s.clock = PhaseClock{on, {}, {}};
+  for (ScratchPair& pair : *scratch_)
+    for (Scratch& s : pair.s) s.clock = PhaseClock{on, {}, {}};
   profiling_ = on;
 }
 
 template <class L>
 StepProfile StepEngine<L>::profile() const {
   StepProfile sum;
-  for (const Scratch& s : *scratch_)
-    for (double StepProfile::*phase : {&StepProfile::dynamics, &StepProfile::contact_detection,
-                                       &StepProfile::constraint_solve, &StepProfile::integration})
-      sum.*phase += s.clock.seconds.*phase;
+  for (const ScratchPair& pair : *scratch_)
+    for (const Scratch& s : pair.s)
+      for (double StepProfile::*phase : {&StepProfile::dynamics, &StepProfile::contact_detection,
+                                         &StepProfile::constraint_solve, &StepProfile::integration})
+        sum.*phase += s.clock.seconds.*phase;
   return sum;
 }
 
@@ -253,19 +260,47 @@ void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockIn
   aba_with<L>(km_, at, terms, s.ws, fields(s.qacc));
 }
 
+// Blocks `first` and, with count 2, `first + 1`, one step each: both up to
+// their solver rows, the rows' solves side by side (solve_blocks), then
+// both to the end. The same bits as one block at a time.
+// Only a block whose first round is contact rows alone, few enough to be
+// swept unrolled, waits for the second: the side-by-side sweeps pay there
+// (docs/performance.md), while two blocks of a large model with joint rows
+// would only crowd the cache.
 template <class L>
-void StepEngine<L>::step_block(int block, T h, Scratch& s) {
+void StepEngine<L>::step_blocks(int first, int count, T h, Scratch* s) {
+  begin_block(first, h, s[0]);
+  const ContactScratch<L>& c = s[0].contacts;
+  const bool pair = count == 2 && s[0].solving && !s[0].joint_rows_needed && c.k == 3 && c.slots <= kMaxUnrolledSlots;
+  if (pair) begin_block(first + 1, h, s[1]);
+  solve_blocks(s, pair ? 2 : 1, h);
+  end_block(first, h, s[0]);
+  if (pair) {
+    end_block(first + 1, h, s[1]);
+  } else if (count == 2) {
+    begin_block(first + 1, h, s[0]);
+    solve_blocks(s, 1, h);
+    end_block(first + 1, h, s[0]);
+  }
+}
+
+// The step of one block up to its solver rows: the input checks, the
+// dynamics (the whole step with RK4), the contacts found and the rows set
+// up (s.solving: the block has rows to solve).
+template <class L>
+void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
   StepBatch<T>& B = batch_;
   const int nq = km_.nq, nv = km_.nv;
-  T* q = B.state.q.block(block);
-  T* v = B.state.v.block(block);
+  const T* q = B.state.q.block(block);
+  const T* v = B.state.v.block(block);
   const T* tau_ff = B.state.tau.block(block);
   s.clock.start();
+  s.solving = false;
 
   // Inputs that are not finite fault their copy; when several are, the
   // torque is named before the targets, the wrench and gravity.
-  L input_fault(T(0));
+  s.input_fault = L(T(0));
   const std::pair<lane::mask_t<L>, Fault> checks[] = {
       {any_non_finite<L>(B.state.gravity.block(block), 3), Fault::NonFiniteGravity},
       {any_non_finite<L>(B.state.wrench.block(block), plan_.wrenches ? 6 * km_.nbody : 0), Fault::NonFiniteWrench},
@@ -273,7 +308,7 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
            any_non_finite<L>(B.target_v.block(block), plan_.drives ? nv : 0),
        Fault::NonFiniteTarget},
       {any_non_finite<L>(tau_ff, nv), Fault::NonFiniteTorque}};
-  for (const auto& [bad, code] : checks) input_fault = lane::select(bad, fault_code<L>(code), input_fault);
+  for (const auto& [bad, code] : checks) s.input_fault = lane::select(bad, fault_code<L>(code), s.input_fault);
 
   BlockInputs<T> in;
   in.inertia = inertia(block);
@@ -284,35 +319,50 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
                                     B.joint_damping.block(block), B.armature.block(block)};
   for (int k = 0; k < nv; ++k) s.u0[k] = lane::load<L>(v + k * W);
 
-  T* q_next = fields(s.q_next);
   if (options_.integrator == Integrator::RK4) {
-    rk4_block(in, tau_ff, terms_in, q, h, q_next, s);
+    rk4_block(in, tau_ff, terms_in, q, h, fields(s.q_next), s);
     s.clock.lap(&StepProfile::dynamics);
-  } else {
-    free_acceleration(q, v, h, in, tau_ff, terms_in, s);
-    // u1 with the Free joints' linear velocities in the frame at the start of
-    // the step (add_frame_turn_rate); back into the body frame at the end.
-    for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(h), s.qacc[k], s.u0[k]);
-    add_frame_turn_rate<L>(km_, v, fields(s.qacc), gyroscopic_weight(h), h, fields(s.u1));
-    const bool trapezoid = options_.integrator == Integrator::Trapezoid;
-    if (trapezoid) heun_velocity(in, tau_ff, terms_in, q, h, s);
-    const bool tgs = options_.solver == SolverType::TGS;
-    s.rows_at_rest = lane::mask_t<L>(true);
-    const bool contacts = !contact_pairs_.empty();
-    // rows see the step's q: the trapezoid's predictor moved the joint transforms
-    if (trapezoid && (contacts || !row_specs_.empty())) joint_transforms<L>(km_, q, s.ws);
-    s.clock.lap(&StepProfile::dynamics);
-    s.contacts.slots = 0;
-    if (contacts) {
-      world_transforms<L>(km_, s.ws);
-      detect_contacts<L>(km_, contact_pairs_, contact_params_, fields(s.u1), h, s.ws, contact_arrays(block),
-                         s.contacts);
-      s.clock.lap(&StepProfile::contact_detection);
-    }
-    if (!row_specs_.empty() || s.contacts.slots > 0) solve_rows(block, q, h, s);
-    else if (tgs)
-      for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
-    if (contacts)
+    return;
+  }
+  free_acceleration(q, v, h, in, tau_ff, terms_in, s);
+  // u1 with the Free joints' linear velocities in the frame at the start of
+  // the step (add_frame_turn_rate); back into the body frame at the end.
+  for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(h), s.qacc[k], s.u0[k]);
+  add_frame_turn_rate<L>(km_, v, fields(s.qacc), gyroscopic_weight(h), h, fields(s.u1));
+  const bool trapezoid = options_.integrator == Integrator::Trapezoid;
+  if (trapezoid) heun_velocity(in, tau_ff, terms_in, q, h, s);
+  s.rows_at_rest = lane::mask_t<L>(true);
+  const bool contacts = !contact_pairs_.empty();
+  // rows see the step's q: the trapezoid's predictor moved the joint transforms
+  if (trapezoid && (contacts || !row_specs_.empty())) joint_transforms<L>(km_, q, s.ws);
+  s.clock.lap(&StepProfile::dynamics);
+  s.contacts.slots = 0;
+  if (contacts) {
+    world_transforms<L>(km_, s.ws);
+    detect_contacts<L>(km_, contact_pairs_, contact_params_, fields(s.u1), h, s.ws, contact_arrays(block),
+                       s.contacts);
+    s.clock.lap(&StepProfile::contact_detection);
+  }
+  if (!row_specs_.empty() || s.contacts.slots > 0) prepare_rows(block, q, h, s);
+  else if (options_.solver == SolverType::TGS)
+    for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
+  s.clock.lap(&StepProfile::constraint_solve);
+}
+
+// The step of one block after its rows' solve: the rows' impulses applied,
+// the contacts stored, the positions integrated, the fault check.
+template <class L>
+void StepEngine<L>::end_block(int block, T h, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  StepBatch<T>& B = batch_;
+  const int nq = km_.nq, nv = km_.nv;
+  T* q = B.state.q.block(block);
+  T* v = B.state.v.block(block);
+  T* q_next = fields(s.q_next);
+  s.clock.start();
+  if (options_.integrator != Integrator::RK4) {
+    if (s.solving) finish_rows(block, h, s);
+    if (!contact_pairs_.empty())
       store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
                         contact_arrays(block));
     s.clock.lap(&StepProfile::constraint_solve);
@@ -328,7 +378,7 @@ void StepEngine<L>::step_block(int block, T h, Scratch& s) {
   lane::mask_t<L> bad_state = any_non_finite<L>(q_next, nq);
   for (int k = 0; k < nv; ++k) bad_state = bad_state || !lane::is_finite(s.u1[k]);
   const L zero(T(0));
-  const L new_fault = lane::select(input_fault != zero, input_fault,
+  const L new_fault = lane::select(s.input_fault != zero, s.input_fault,
                                    lane::select(bad_state, fault_code<L>(Fault::NonFiniteState), zero));
   T* fault = B.fault.block(block);
   const L old_fault = lane::load<L>(fault);
@@ -447,20 +497,21 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
   integrate<L>(km_, q0, vsum, sixth, q_out);
 }
 
+// The block's solver rows (joint rows, then the contacts found) at u* =
+// s.u1, their warm start, Mt's factors and D's contact block. Lanes where
+// no row needs an impulse keep a zero impulse exactly; a block where all
+// lanes are so skips the rows (the same result, bit for bit, as solving)
+// and is done here; otherwise s.solving, and solve_blocks and finish_rows
+// follow.
 template <class L>
-void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
+void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
-  const int nv = km_.nv;
   JointRowScratch<L>& rs = s.rows;
   RowBlock<L>& rows = rs.rows;
   ContactScratch<L>& contacts = s.contacts;
   const int mj = static_cast<int>(row_specs_.size()), mc = contacts.k * contacts.slots;
   rows.m = mj + mc;
   const T erp = static_cast<T>(options_.error_reduction);
-  const bool tgs = options_.solver == SolverType::TGS;
-  // Lanes where no row needs an impulse keep a zero impulse exactly; a
-  // block where all lanes are so skips the rows (the same result, bit for
-  // bit, as solving).
   const T* friction = batch_.joint_friction.block(block);
   lane::mask_t<L> rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), friction, h, erp);
   if (mc > 0) {
@@ -468,154 +519,247 @@ void StepEngine<L>::solve_rows(int block, const T* q, T h, Scratch& s) {
     rest = rest && contact_rows_at_rest<L>(rows, mj, contacts);
   }
   s.rows_at_rest = rest;
-  T* impulse = batch_.impulse.block(block);
   const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
-  if (!lane::all<L>(rest)) {
-    build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
-    for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
-    for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
-    // Mt's factors: from the step's one ABA at q (semi-implicit Euler), or,
-    // where the trapezoid's second ABA ran at its predicted state, by CRBA
-    T* H = reinterpret_cast<T*>(s.ws.matrix.data());
-    if (options_.integrator == Integrator::SemiImplicitEuler)
-      ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
-    else
-      factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
-    if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
-    // D's block of the joint rows (and their columns of Mt^-1), and its
-    // coupling with the contacts: built only when a solve needs them
-    bool joint_block = false;
-    auto build_joint_block = [&] {
-      if (joint_block) return;
-      joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, rs);
-      if (mc > 0) contact_joint_delassus<L>(km_, H, row_specs_, rs.sigma, mj, contacts, rows);
-      joint_block = true;
-    };
-    for (int k = 0; k < nv; ++k) s.u_free[k] = s.u1[k];
-    solve_needed_rows(H, h, rest, s, build_joint_block);
-    if (!tgs) {
-      for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k] + contacts.dv[k]);
-    } else {
-      if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
-      if (mc > 0) add_contact_impulses<L>(km_, H, rows.lambda.data() + mj, contacts, s.u1.data());
-      for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
-      for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
-      if (joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
-      if (mc > 0) add_contact_impulses<L>(km_, H, rows.lambda_sum.data() + mj, contacts, s.displacement.data());
-      for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
-    }
-    for (int r = 0; r < mj; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);
-  } else {
+  if (lane::all<L>(rest)) {
+    T* impulse = batch_.impulse.block(block);
     for (int r = 0; r < mj; ++r) lane::store(zero, impulse + r * W);
-    if (tgs)
-      for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u1[k];
+    if (options_.solver == SolverType::TGS)
+      for (int k = 0; k < km_.nv; ++k) s.displacement[k] = L(h) * s.u1[k];
+    return;
+  }
+  s.solving = true;
+  build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
+  const T* impulse = batch_.impulse.block(block);
+  for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
+  for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
+  // Mt's factors: from the step's one ABA at q (semi-implicit Euler), or,
+  // where the trapezoid's second ABA ran at its predicted state, by CRBA
+  T* H = factors(s);
+  if (options_.integrator == Integrator::SemiImplicitEuler)
+    ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
+  else
+    factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
+  if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
+  s.joint_block = false;  // built by the first round that needs a joint row
+  for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
+  // the joint rows a lane needs at the free velocity (solve_blocks)
+  s.joint_rows_needed = false;
+  for (int r = 0; r < mj; ++r) {
+    s.need[r] = !rest && !row_slack(rows, r, rows.v_free[r]);
+    s.joint_rows_needed = s.joint_rows_needed || lane::any<L>(s.need[r]);
   }
 }
 
-// PGS or TGS on the rows a lane needs. A joint row needs an impulse in a
-// lane where its velocity leaves its band at zero impulse: first at the
-// free velocity (joint friction nearly always, a limit when the joint heads
-// past it), then at the velocities the solve leaves (for TGS at any
-// substep, its target following its displacement). Each round solves, from
-// the warm start, the contact rows with the joint rows some lane needs; in
-// a lane that does not need one of them, that row is held at zero impulse
-// (box [0, 0]), adds nothing to the other rows' velocities, and the sweeps
+// D's block of the joint rows (and their columns of Mt^-1), and its
+// coupling with the contacts: built the first time a solve needs them.
+template <class L>
+void StepEngine<L>::build_joint_block(Scratch& s) const {
+  if (s.joint_block) return;
+  const int mj = static_cast<int>(row_specs_.size());
+  joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, s.rows);
+  if (s.contacts.slots > 0) contact_joint_delassus<L>(km_, factors(s), row_specs_, s.rows.sigma, mj, s.contacts, s.rows.rows);
+  s.joint_block = true;
+}
+
+// s.u1 (and TGS's displacement) from the solved impulses, and the joint
+// rows' impulses stored as the next step's warm start.
+template <class L>
+void StepEngine<L>::finish_rows(int block, T h, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const int nv = km_.nv, mj = static_cast<int>(row_specs_.size());
+  JointRowScratch<L>& rs = s.rows;
+  RowBlock<L>& rows = rs.rows;
+  ContactScratch<L>& contacts = s.contacts;
+  const lane::mask_t<L> rest = s.rows_at_rest;
+  const T* H = factors(s);
+  const bool contact_rows = contacts.slots > 0;
+  if (options_.solver != SolverType::TGS) {
+    for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k] + contacts.dv[k]);
+  } else {
+    if (s.joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
+    if (contact_rows) add_contact_impulses<L>(km_, H, rows.lambda.data() + mj, contacts, s.u1.data());
+    for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
+    for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
+    if (s.joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
+    if (contact_rows) add_contact_impulses<L>(km_, H, rows.lambda_sum.data() + mj, contacts, s.displacement.data());
+    for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
+  }
+  const L zero(T(0));
+  T* impulse = batch_.impulse.block(block);
+  for (int r = 0; r < mj; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);
+}
+
+// PGS or TGS on the rows each lane needs, for the `count` blocks of s that
+// are solving, side by side. A joint row needs an impulse in a lane where
+// its velocity leaves its band at zero impulse: first at the free velocity
+// (joint friction nearly always, a limit when the joint heads past it),
+// then at the velocities the solve leaves (for TGS at any substep, its
+// target following its displacement). Each round solves, from the warm
+// start, the contact rows with the joint rows some lane needs; in a lane
+// that does not need one of them, that row is held at zero impulse (box
+// [0, 0]), adds nothing to the other rows' velocities, and the sweeps
 // leave it at zero: the lane's result is that of its own rows, whatever the
 // other lanes need. A lane where a row held at zero then needs an impulse
 // takes it, and every lane solves again, until none does; each round adds
 // a row, so there are at most as many rounds as joint rows, and a lane's
 // rows held at zero end the solve slack. A standing robot solves its
 // contacts alone; a humanoid with 84 joint rows, of which its 20 friction
-// rows and a few limits act, solves those rather than all 84.
-// `build_joint_block` builds D's joint rows' block and coupling the first
-// time a joint row is needed. Leaves the impulses (and TGS's lambda_sum)
-// in s.rows, 0 on the joint rows held at zero; for PGS their velocity
-// change Mt^-1 J^T lambda in s.contacts.dv.
+// rows and a few limits act, solves those rather than all 84. Two blocks
+// in the same round sweep together (pgs_solve_pair), each with its own
+// result. Leaves the impulses (and TGS's lambda_sum) in s.rows, 0 on the
+// joint rows held at zero; for PGS their velocity change Mt^-1 J^T lambda
+// in s.contacts.dv.
 template <class L>
-template <class BuildJointBlock>
-void StepEngine<L>::solve_needed_rows(const T* H, T h, const lane::mask_t<L>& rest, Scratch& s,
-                                      BuildJointBlock&& build_joint_block) const {
-  JointRowScratch<L>& rs = s.rows;
-  RowBlock<L>& rows = rs.rows;
-  RowBlock<L>& sub = s.needed;
-  ContactScratch<L>& contacts = s.contacts;
+void StepEngine<L>::solve_blocks(Scratch* s, int count, T h) {
+  const int mj = static_cast<int>(row_specs_.size());
+  bool active[2] = {false, false};
+  for (int i = 0; i < count; ++i) {
+    if (!s[i].solving) continue;
+    if (!active[0]) s[i].clock.start();
+    active[i] = true;
+  }
   const bool tgs = options_.solver == SolverType::TGS;
-  const int mj = static_cast<int>(row_specs_.size()), m = rows.m, iterations = options_.iterations;
-  const L zero(T(0)), substep(h / T(iterations)), inv_substep(T(iterations) / h);
-  int nj = 0;  // the joint rows in `sub`, before its contact rows
-  // contacts.dv = Mt^-1 J^T lambda of sub's impulses
-  auto velocity_change = [&] {
-    contact_velocity_change<L>(km_, H, sub.lambda.data() + nj, contacts);
-    if (nj == 0) return;
-    for (int r = 0; r < mj; ++r) s.joint_impulse[r] = zero;
-    for (int a = 0; a < nj; ++a) s.joint_impulse[s.needed_source[a]] = sub.lambda[a];
-    add_row_impulses<L>(km_, row_specs_, rs, s.joint_impulse, contacts.dv.data());
-  };
-  for (int r = 0; r < mj; ++r) s.need[r] = !rest && !row_slack(rows, r, rows.v_free[r]);
-  for (bool grew = true; grew;) {
-    nj = 0;
-    for (int r = 0; r < mj; ++r)
-      if (lane::any<L>(s.need[r])) s.needed_source[nj++] = r;
-    if (nj > 0) build_joint_block();
-    const int n = nj + m - mj;
-    for (int a = nj; a < n; ++a) s.needed_source[a] = mj + a - nj;
-    sub.m = n;
-    for (int a = 0; a < n; ++a) {
-      const int r = s.needed_source[a];
-      const bool joint = a < nj;
-      sub.bound_row[a] = rows.bound_row[r] < 0 ? -1 : rows.bound_row[r] - mj + nj;  // contact friction: its normal
-      sub.mu[a] = rows.mu[r];
-      sub.cone[a] = rows.cone[r];
-      sub.positional[a] = rows.positional[r];
-      sub.rate[a] = rows.rate[r];
-      sub.floor[a] = rows.floor[r];
-      sub.ceiling[a] = rows.ceiling[r];
-      sub.error[a] = rows.error[r];
-      sub.v_free[a] = rows.v_free[r];
-      sub.target[a] = rows.target[r];
-      sub.target_hi[a] = rows.target_hi[r];
-      sub.lo[a] = joint ? lane::select(s.need[r], rows.lo[r], zero) : rows.lo[r];
-      sub.hi[a] = joint ? lane::select(s.need[r], rows.hi[r], zero) : rows.hi[r];
-      sub.lambda[a] = joint ? lane::select(s.need[r], rows.lambda[r], zero) : rows.lambda[r];
-      for (int b = 0; b < n; ++b) sub.D[a * n + b] = rows.D[r * m + s.needed_source[b]];
-    }
-    // s.violated[r]: lanes where joint row r, held at zero, left its band
-    if (!tgs) {
-      pgs_solve(sub, iterations);
-      velocity_change();
-      for (int r = 0; r < mj; ++r) s.violated[r] = !joint_row_slack<L>(row_specs_, rs, r, contacts.dv.data());
-    } else {
-      for (int r = 0; r < mj; ++r) {
-        s.violated[r] = lane::mask_t<L>(false);
-        s.held_displacement[r] = zero;
+  while (active[0] || active[1]) {
+    Scratch* round[2];
+    int n = 0;
+    for (int i = 0; i < count; ++i)
+      if (active[i]) {
+        build_round(s[i]);
+        round[n++] = &s[i];
       }
-      tgs_solve(sub, iterations, h, [&] {
-        velocity_change();
-        for (int r = 0; r < mj; ++r) {
-          const L v = joint_row_velocity<L>(row_specs_, rs, r, contacts.dv.data());
-          const L target = rows.positional[r] ? tgs_target(rows, r, s.held_displacement[r], inv_substep) : rows.target[r];
-          const L target_hi = rows.positional[r] ? target : rows.target_hi[r];
-          s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r],
-                                                        rows.positional[r] != 0);
-          s.held_displacement[r] = lane::fmadd(substep, v, s.held_displacement[r]);
-        }
-      });
-    }
-    grew = false;
-    for (int r = 0; r < mj; ++r) {
-      const lane::mask_t<L> newly = !rest && !s.need[r] && s.violated[r];
-      if (lane::any<L>(newly)) {
-        s.need[r] = s.need[r] || newly;
-        grew = true;
-      }
+    solve_round(round, n, h);
+    for (int i = 0; i < count; ++i)
+      if (active[i]) active[i] = end_round(s[i]);
+  }
+  for (int i = 0; i < count; ++i) {
+    if (!s[i].solving) continue;
+    RowBlock<L>& rows = s[i].rows.rows;
+    const RowBlock<L>& sub = s[i].needed;
+    for (int r = 0; r < mj; ++r) rows.lambda[r] = rows.lambda_sum[r] = L(T(0));
+    for (int a = 0; a < sub.m; ++a) {
+      const int r = s[i].needed_source[a];
+      rows.lambda[r] = sub.lambda[a];
+      if (tgs) rows.lambda_sum[r] = sub.lambda_sum[a];
     }
   }
-  for (int r = 0; r < mj; ++r) rows.lambda[r] = rows.lambda_sum[r] = zero;
-  for (int a = 0; a < nj + m - mj; ++a) {
+  // the blocks' solves overlap: their time goes to the first one's clock
+  for (int i = 0; i < count; ++i)
+    if (s[i].solving) {
+      s[i].clock.lap(&StepProfile::constraint_solve);
+      break;
+    }
+}
+
+// A round's rows in s.needed: the joint rows some lane needs (held at zero
+// in the others), then the contact rows.
+template <class L>
+void StepEngine<L>::build_round(Scratch& s) const {
+  const RowBlock<L>& rows = s.rows.rows;
+  RowBlock<L>& sub = s.needed;
+  const int mj = static_cast<int>(row_specs_.size()), m = rows.m;
+  const L zero(T(0));
+  int nj = 0;
+  for (int r = 0; r < mj; ++r)
+    if (lane::any<L>(s.need[r])) s.needed_source[nj++] = r;
+  if (nj > 0) build_joint_block(s);
+  s.needed_joint_rows = nj;
+  const int n = nj + m - mj;
+  for (int a = nj; a < n; ++a) s.needed_source[a] = mj + a - nj;
+  sub.m = n;
+  for (int a = 0; a < n; ++a) {
     const int r = s.needed_source[a];
-    rows.lambda[r] = sub.lambda[a];
-    if (tgs) rows.lambda_sum[r] = sub.lambda_sum[a];
+    const bool joint = a < nj;
+    sub.bound_row[a] = rows.bound_row[r] < 0 ? -1 : rows.bound_row[r] - mj + nj;  // contact friction: its normal
+    sub.mu[a] = rows.mu[r];
+    sub.cone[a] = rows.cone[r];
+    sub.positional[a] = rows.positional[r];
+    sub.rate[a] = rows.rate[r];
+    sub.floor[a] = rows.floor[r];
+    sub.ceiling[a] = rows.ceiling[r];
+    sub.error[a] = rows.error[r];
+    sub.v_free[a] = rows.v_free[r];
+    sub.target[a] = rows.target[r];
+    sub.target_hi[a] = rows.target_hi[r];
+    sub.lo[a] = joint ? lane::select(s.need[r], rows.lo[r], zero) : rows.lo[r];
+    sub.hi[a] = joint ? lane::select(s.need[r], rows.hi[r], zero) : rows.hi[r];
+    sub.lambda[a] = joint ? lane::select(s.need[r], rows.lambda[r], zero) : rows.lambda[r];
+    for (int b = 0; b < n; ++b) sub.D[a * n + b] = rows.D[r * m + s.needed_source[b]];
   }
+}
+
+// contacts.dv = Mt^-1 J^T lambda of s.needed's impulses.
+template <class L>
+void StepEngine<L>::needed_velocity_change(Scratch& s) const {
+  const int mj = static_cast<int>(row_specs_.size()), nj = s.needed_joint_rows;
+  const RowBlock<L>& sub = s.needed;
+  contact_velocity_change<L>(km_, factors(s), sub.lambda.data() + nj, s.contacts);
+  if (nj == 0) return;
+  for (int r = 0; r < mj; ++r) s.joint_impulse[r] = L(T(0));
+  for (int a = 0; a < nj; ++a) s.joint_impulse[s.needed_source[a]] = sub.lambda[a];
+  add_row_impulses<L>(km_, row_specs_, s.rows, s.joint_impulse, s.contacts.dv.data());
+}
+
+// One round of `count` blocks (1 or 2) side by side: PGS, or TGS with each
+// block's held rows checked at every substep (check_held_rows).
+template <class L>
+void StepEngine<L>::solve_round(Scratch* const* s, int count, T h) const {
+  const int iterations = options_.iterations;
+  if (options_.solver != SolverType::TGS) {
+    if (count == 2) pgs_solve_pair(s[0]->needed, s[1]->needed, iterations);
+    else pgs_solve(s[0]->needed, iterations);
+    return;
+  }
+  const int mj = static_cast<int>(row_specs_.size());
+  RowBlock<L>* blocks[2];
+  for (int i = 0; i < count; ++i) {
+    blocks[i] = &s[i]->needed;
+    for (int r = 0; r < mj; ++r) {
+      s[i]->violated[r] = lane::mask_t<L>(false);
+      s[i]->held_displacement[r] = L(T(0));
+    }
+  }
+  auto after_substep = [&](int i) { check_held_rows(*s[i], h); };
+  if (count == 2) tgs_solve_blocks<2>(blocks, iterations, h, after_substep);
+  else tgs_solve_blocks<1>(blocks, iterations, h, after_substep);
+}
+
+// After a TGS substep: s.violated gains the lanes where a joint row held at
+// zero left its band, its target following its own displacement.
+template <class L>
+void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
+  const int mj = static_cast<int>(row_specs_.size()), iterations = options_.iterations;
+  const RowBlock<L>& rows = s.rows.rows;
+  const L substep(h / T(iterations)), inv_substep(T(iterations) / h);
+  needed_velocity_change(s);
+  for (int r = 0; r < mj; ++r) {
+    const L v = joint_row_velocity<L>(row_specs_, s.rows, r, s.contacts.dv.data());
+    const L target = rows.positional[r] ? tgs_target(rows, r, s.held_displacement[r], inv_substep) : rows.target[r];
+    const L target_hi = rows.positional[r] ? target : rows.target_hi[r];
+    s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r],
+                                                  rows.positional[r] != 0);
+    s.held_displacement[r] = lane::fmadd(substep, v, s.held_displacement[r]);
+  }
+}
+
+// After a round: PGS checks its held rows at the velocities it leaves;
+// a lane where a held row left its band takes that row. True: the block
+// solves another round.
+template <class L>
+bool StepEngine<L>::end_round(Scratch& s) const {
+  const int mj = static_cast<int>(row_specs_.size());
+  if (options_.solver != SolverType::TGS) {
+    needed_velocity_change(s);
+    for (int r = 0; r < mj; ++r) s.violated[r] = !joint_row_slack<L>(row_specs_, s.rows, r, s.contacts.dv.data());
+  }
+  bool grew = false;
+  for (int r = 0; r < mj; ++r) {
+    const lane::mask_t<L> newly = !s.rows_at_rest && !s.need[r] && s.violated[r];
+    if (lane::any<L>(newly)) {
+      s.need[r] = s.need[r] || newly;
+      grew = true;
+    }
+  }
+  return grew;
 }
 
 // RaiSim's torque over the step by source, with dv = v1 - v0:

@@ -92,19 +92,34 @@ class StepEngine final : public Simulator::Engine {
     std::vector<L> q_next;          // (nq) the step's new positions
     std::vector<L> q_stage, v_stage;  // RK4 stage state
     std::vector<L> v_sum, a_sum;      // RK4 weighted sums
-    // solve_needed_rows's: the rows it solves (the joint rows some lane
+    // solve_blocks's: the rows a round solves (the joint rows some lane
     // needs, then the contact rows), each one's row in `rows`, and per
     // joint row the lanes that need it, those where it left its band held
     // at zero, its impulse and (TGS) its displacement held at zero
     RowBlock<L> needed;
     std::vector<int> needed_source;
+    int needed_joint_rows = 0;  // the joint rows in `needed`, before its contact rows
     std::vector<lane::mask_t<L>> need, violated;
     std::vector<L> joint_impulse, held_displacement;
+    // carried from begin_block to end_block
+    L input_fault;
+    bool solving = false;      // the block has rows to solve this step
+    bool joint_rows_needed = false;  // some lane needs a joint row at the free velocity
+    bool joint_block = false;  // D's joint rows block is built (build_joint_block)
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
+  };
+  // A worker steps two blocks at a time (step_blocks).
+  struct ScratchPair {
+    Scratch s[2];
   };
 
   static T* fields(std::vector<L>& lanes) { return reinterpret_cast<T*>(lanes.data()); }
-  void step_block(int block, T h, Scratch& s);
+  // Mt's factors for the rows (ltdl_factor_from_aba's or CRBA's)
+  static T* factors(Scratch& s) { return reinterpret_cast<T*>(s.ws.matrix.data()); }
+  static const T* factors(const Scratch& s) { return reinterpret_cast<const T*>(s.ws.matrix.data()); }
+  void step_blocks(int first, int count, T h, Scratch* s);
+  void begin_block(int block, T h, Scratch& s);
+  void end_block(int block, T h, Scratch& s);
   T gyroscopic_weight(T h) const;
   // ABA with the joint effects at (q, v): s.qacc. Needs nothing prepared.
   void free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
@@ -117,13 +132,19 @@ class StepEngine final : public Simulator::Engine {
                      Scratch& s);
   // The velocity the positions move with, into velocity; returns its step.
   T position_velocity(const Scratch& s, T h, T* velocity) const;
-  // Solver rows (joint rows, then the contacts found): s.u1 from s.u1
-  // (= u*), and the displacement for TGS.
-  void solve_rows(int block, const T* q, T h, Scratch& s);
-  // PGS or TGS on the rows each lane needs (see the definition).
-  template <class BuildJointBlock>
-  void solve_needed_rows(const T* H, T h, const lane::mask_t<L>& rest, Scratch& s,
-                         BuildJointBlock&& build_joint_block) const;
+  // Solver rows (joint rows, then the contacts found): set up from s.u1
+  // (= u*) by prepare_rows, solved by solve_blocks (the rounds: build_round,
+  // solve_round or the pair's sweeps, end_round), and finish_rows puts s.u1
+  // (and TGS's displacement) after them.
+  void prepare_rows(int block, const T* q, T h, Scratch& s);
+  void build_joint_block(Scratch& s) const;
+  void solve_blocks(Scratch* s, int count, T h);
+  void build_round(Scratch& s) const;
+  void solve_round(Scratch* const* s, int count, T h) const;
+  void check_held_rows(Scratch& s, T h) const;
+  bool end_round(Scratch& s) const;
+  void needed_velocity_change(Scratch& s) const;
+  void finish_rows(int block, T h, Scratch& s);
   ContactArrays<T> contact_arrays(int block);
   int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
   void make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings);
@@ -146,7 +167,7 @@ class StepEngine final : public Simulator::Engine {
   ContactParams<T> contact_params_;
   StepBatch<T> batch_;
   BatchArray<T> model_inertia_;  // one block of the model's inertial parameters
-  std::unique_ptr<tbb::enumerable_thread_specific<Scratch>> scratch_;  // made once the rows are known
+  std::unique_ptr<tbb::enumerable_thread_specific<ScratchPair>> scratch_;  // made once the rows are known
   bool profiling_ = false;
 };
 

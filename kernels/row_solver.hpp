@@ -22,6 +22,7 @@
 #include "kernels/lane.hpp"
 
 #include <limits>
+#include <utility>
 #include <vector>
 
 namespace lockstep {
@@ -103,12 +104,14 @@ inline lane::mask_t<L> rows_at_rest(const RowBlock<L>& rows) {
   return rest;
 }
 
-// Row r's velocity at the impulses lambda.
+// Row r's velocity at the impulses lambda, summed over the columns
+// from, ..., m - 1, 0, ..., from - 1.
 template <class L>
-inline L row_velocity(const RowBlock<L>& rows, int r) {
+inline L row_velocity(const RowBlock<L>& rows, int r, int from = 0) {
   const L* Dr = &rows.D[r * rows.m];
   L v = rows.v_free[r];
-  for (int c = 0; c < rows.m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
+  for (int c = from; c < rows.m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
+  for (int c = 0; c < from; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
   return v;
 }
 
@@ -126,39 +129,43 @@ inline lane::mask_t<L> row_slack(const RowBlock<L>& rows, int r, const L& v) {
                      rows.positional[r] != 0);
 }
 
-// One Gauss-Seidel sweep; v_r recomputed from the impulses. Needs
-// invert_diagonal.
-// A cone pair is updated together: each row's unclamped step at the pair's
-// current velocities, then the pair projected radially onto the disc of
+// A cone pair's unclamped steps (a, b) projected radially onto the disc of
 // radius mu lambda_bound (Coulomb's isotropic cone, not a pyramid).
 template <class L>
-inline void gauss_seidel_sweep(RowBlock<L>& rows) {
+LOCKSTEP_INLINE void project_to_cone(L& a, L& b, const L& radius) {
   using T = lane::scalar_t<L>;
+  const L square = a * a + b * b;
+  // a block whose lanes all lie well inside their cones (radius^2 with room
+  // for its rounding and the root's) needs no projection: the root and the
+  // division are the sweep's longest waits
+  if (lane::all<L>(square < radius * radius * L(T(1) - 8 * std::numeric_limits<T>::epsilon()))) return;
+  const L length = lane::sqrt(square);
+  const L scale = lane::select(length > radius, radius / lane::max(length, L(std::numeric_limits<T>::min())), L(T(1)));
+  a = a * scale;
+  b = b * scale;
+}
+
+// One Gauss-Seidel sweep; v_r recomputed from the impulses, each row's sum
+// started at its own column (row_velocity's `from`): the impulses this sweep
+// changed last enter its chain last, so a row waits on the row before it
+// for one multiply-add rather than for the rest of the sum. Needs
+// invert_diagonal. A cone pair is updated together: each row's unclamped
+// step at the pair's current velocities, then project_to_cone.
+template <class L>
+inline void gauss_seidel_sweep(RowBlock<L>& rows) {
   const int m = rows.m;
   for (int r = 0; r < m; ++r) {
     const L inv_d = rows.inv_diag[r];
     if (rows.cone[r]) {
-      const L inv_d2 = rows.inv_diag[r + 1];
-      L a = rows.lambda[r] - row_velocity(rows, r) * inv_d;
-      L b = rows.lambda[r + 1] - row_velocity(rows, r + 1) * inv_d2;
-      const L radius = rows.mu[r] * rows.lambda[rows.bound_row[r]];
-      const L square = a * a + b * b;
-      // a block whose lanes all lie well inside their cones (radius^2 with
-      // room for its rounding and the root's) needs no projection: the
-      // root and the division are the sweep's longest waits
-      if (!lane::all<L>(square < radius * radius * L(T(1) - 8 * std::numeric_limits<T>::epsilon()))) {
-        const L length = lane::sqrt(square);
-        const L scale =
-            lane::select(length > radius, radius / lane::max(length, L(std::numeric_limits<T>::min())), L(T(1)));
-        a = a * scale;
-        b = b * scale;
-      }
+      L a = rows.lambda[r] - row_velocity(rows, r, r) * inv_d;
+      L b = rows.lambda[r + 1] - row_velocity(rows, r + 1, r) * rows.inv_diag[r + 1];
+      project_to_cone(a, b, rows.mu[r] * rows.lambda[rows.bound_row[r]]);
       rows.lambda[r] = a;
       rows.lambda[r + 1] = b;
       ++r;
       continue;
     }
-    const L v = row_velocity(rows, r);
+    const L v = row_velocity(rows, r, r);
     L lo = rows.lo[r], hi = rows.hi[r];
     if (rows.bound_row[r] >= 0) {
       hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
@@ -168,11 +175,114 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows) {
   }
 }
 
+// --- contact-only blocks, unrolled -----------------------------------------
+// A block of S contact slots without torsion and without joint rows (a
+// robot standing or walking on its feet) has the rows [normal, cone pair]
+// per slot. Its sweeps are unrolled at compile time with the impulses in
+// registers, the same operations in the same order as gauss_seidel_sweep,
+// so the same bits. Even so each row waits on the one before it (the
+// rest of its sum, its band step and clamp: some 25 cycles for a normal
+// row), and the core idles; two blocks' sweeps interleaved slot by slot
+// (pgs_solve_pair) give it two independent chains and take about the time
+// of one block's (docs/performance.md).
+inline constexpr int kMaxUnrolledSlots = 8;
+
+template <class L>
+inline bool is_contact_slots(const RowBlock<L>& rows) {
+  if (rows.m == 0 || rows.m % 3 != 0 || rows.m / 3 > kMaxUnrolledSlots) return false;
+  for (int n = 0; n < rows.m; n += 3)
+    if (rows.bound_row[n] >= 0 || rows.cone[n] || !rows.cone[n + 1] || rows.bound_row[n + 1] != n ||
+        rows.bound_row[n + 2] != n)
+      return false;
+  return true;
+}
+
+// v + sum_c Dr[c] lambda[c] over c = from, ..., m - 1, 0, ..., from - 1
+// (row_velocity's order), unrolled.
+template <int m, int from, class L, std::size_t... k>
+LOCKSTEP_INLINE L unrolled_row_velocity(const L* Dr, const L* lambda, L v, std::index_sequence<k...>) {
+  ((v = lane::fmadd(Dr[(from + static_cast<int>(k)) % m], lambda[(from + static_cast<int>(k)) % m], v)), ...);
+  return v;
+}
+
+// Slot `slot` of an unrolled sweep over S slots: its normal row, then its
+// cone pair, as gauss_seidel_sweep updates them.
+template <int S, int slot, class L>
+LOCKSTEP_INLINE void unrolled_slot_update(const RowBlock<L>& rows, L* lambda) {
+  constexpr int m = 3 * S, n = 3 * slot;
+  const auto columns = std::make_index_sequence<m>{};
+  const L* D = rows.D.data();
+  const L v = unrolled_row_velocity<m, n>(D + n * m, lambda, rows.v_free[n], columns);
+  lambda[n] = lane::clamp(band_step(lambda[n], v, rows.target[n], rows.target_hi[n], rows.inv_diag[n]), rows.lo[n],
+                          rows.hi[n]);
+  const L va = unrolled_row_velocity<m, n + 1>(D + (n + 1) * m, lambda, rows.v_free[n + 1], columns);
+  const L vb = unrolled_row_velocity<m, n + 1>(D + (n + 2) * m, lambda, rows.v_free[n + 2], columns);
+  L a = lambda[n + 1] - va * rows.inv_diag[n + 1];
+  L b = lambda[n + 2] - vb * rows.inv_diag[n + 2];
+  project_to_cone(a, b, rows.mu[n + 1] * lambda[n]);
+  lambda[n + 1] = a;
+  lambda[n + 2] = b;
+}
+
+// `iterations` sweeps over B blocks of S slots each, interleaved slot by
+// slot; each block's impulses stay in registers between sweeps.
+template <int S, int B, class L, std::size_t... slot>
+void unrolled_slot_sweeps(RowBlock<L>* const* blocks, int iterations, std::index_sequence<slot...>) {
+  L lambda[B][3 * S];
+  for (int i = 0; i < B; ++i)
+    for (int r = 0; r < 3 * S; ++r) lambda[i][r] = blocks[i]->lambda[r];
+  for (int it = 0; it < iterations; ++it)
+    (
+        [&] {
+          for (int i = 0; i < B; ++i) unrolled_slot_update<S, static_cast<int>(slot)>(*blocks[i], lambda[i]);
+        }(),
+        ...);
+  for (int i = 0; i < B; ++i)
+    for (int r = 0; r < 3 * S; ++r) blocks[i]->lambda[r] = lambda[i][r];
+}
+
+// The unrolled sweeps for B blocks of `slots` slots, slots being one of
+// S + 1 in the sequence (1 to kMaxUnrolledSlots).
+template <int B, class L, std::size_t... S>
+void contact_slot_sweeps(RowBlock<L>* const* blocks, int slots, int iterations, std::index_sequence<S...>) {
+  ((slots == static_cast<int>(S) + 1 ? unrolled_slot_sweeps<static_cast<int>(S) + 1, B>(
+                                           blocks, iterations, std::make_index_sequence<S + 1>{})
+                                     : void()),
+   ...);
+}
+
+// `iterations` sweeps of each of B blocks (1 or 2) from the impulses in
+// their lambda: unrolled and interleaved where all are contact-only blocks
+// of the same slots, else one block after the other. Either way each block
+// gets the bits gauss_seidel_sweep gives it alone. Needs invert_diagonal.
+template <int B, class L>
+void sweep_blocks(RowBlock<L>* const* blocks, int iterations) {
+  bool unrolled = true;
+  for (int i = 0; i < B; ++i) unrolled = unrolled && blocks[i]->m == blocks[0]->m && is_contact_slots(*blocks[i]);
+  if (unrolled) {
+    contact_slot_sweeps<B>(blocks, blocks[0]->m / 3, iterations, std::make_index_sequence<kMaxUnrolledSlots>{});
+    return;
+  }
+  for (int i = 0; i < B; ++i)
+    for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(*blocks[i]);
+}
+
 // PGS: `iterations` sweeps from the warm start in lambda.
 template <class L>
 void pgs_solve(RowBlock<L>& rows, int iterations) {
   invert_diagonal(rows);
-  for (int it = 0; it < iterations; ++it) gauss_seidel_sweep(rows);
+  RowBlock<L>* const blocks[1] = {&rows};
+  sweep_blocks<1>(blocks, iterations);
+}
+
+// PGS on two independent blocks, side by side where they have the same
+// layout (sweep_blocks): each gets the bits pgs_solve gives it alone.
+template <class L>
+void pgs_solve_pair(RowBlock<L>& first, RowBlock<L>& second, int iterations) {
+  invert_diagonal(first);
+  invert_diagonal(second);
+  RowBlock<L>* const blocks[2] = {&first, &second};
+  sweep_blocks<2>(blocks, iterations);
 }
 
 // A positional row's target at a TGS substep, its error advanced by the
@@ -184,32 +294,47 @@ inline L tgs_target(const RowBlock<L>& rows, int r, const L& displacement, const
                    rows.floor[r]);
 }
 
-// TGS over `substeps` substeps of h = dt / substeps: before each sweep the
-// positional rows' targets follow their error advanced by the displacement
-// so far (tgs_target); after it every row's displacement grows by h v_r and
+// TGS over `substeps` substeps of h = dt / substeps, on B blocks (1 or
+// 2) side by side (sweep_blocks): before each sweep the positional rows'
+// targets follow their error advanced by the displacement so far
+// (tgs_target); after it every row's displacement grows by h v_r and
 // lambda_sum by h lambda_r (the integrator moves positions by h v_free plus
-// the lambda_sum-mapped impulses), and `after_substep()` runs (the caller's
-// look at the impulses of the substep).
+// the lambda_sum-mapped impulses), and `after_substep(i)` runs for each
+// block i (the caller's look at the impulses of the substep).
+template <int B, class L, class AfterSubstep>
+void tgs_solve_blocks(RowBlock<L>* const* blocks, int substeps, lane::scalar_t<L> dt, AfterSubstep&& after_substep) {
+  using T = lane::scalar_t<L>;
+  const L h(dt / T(substeps)), inv_h(T(substeps) / dt);
+  for (int i = 0; i < B; ++i) {
+    RowBlock<L>& rows = *blocks[i];
+    for (int r = 0; r < rows.m; ++r) {
+      rows.displacement[r] = L(T(0));
+      rows.lambda_sum[r] = L(T(0));
+    }
+    invert_diagonal(rows);
+  }
+  for (int k = 0; k < substeps; ++k) {
+    for (int i = 0; i < B; ++i) {
+      RowBlock<L>& rows = *blocks[i];
+      for (int r = 0; r < rows.m; ++r)
+        if (rows.positional[r]) rows.target[r] = rows.target_hi[r] = tgs_target(rows, r, rows.displacement[r], inv_h);
+    }
+    sweep_blocks<B>(blocks, 1);
+    for (int i = 0; i < B; ++i) {
+      RowBlock<L>& rows = *blocks[i];
+      for (int r = 0; r < rows.m; ++r) {
+        rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r), rows.displacement[r]);
+        rows.lambda_sum[r] = lane::fmadd(h, rows.lambda[r], rows.lambda_sum[r]);
+      }
+      after_substep(i);
+    }
+  }
+}
+
 template <class L, class AfterSubstep>
 void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, AfterSubstep&& after_substep) {
-  using T = lane::scalar_t<L>;
-  const int m = rows.m;
-  const L h(dt / T(substeps)), inv_h(T(substeps) / dt);
-  for (int r = 0; r < m; ++r) {
-    rows.displacement[r] = L(T(0));
-    rows.lambda_sum[r] = L(T(0));
-  }
-  invert_diagonal(rows);
-  for (int k = 0; k < substeps; ++k) {
-    for (int r = 0; r < m; ++r)
-      if (rows.positional[r]) rows.target[r] = rows.target_hi[r] = tgs_target(rows, r, rows.displacement[r], inv_h);
-    gauss_seidel_sweep(rows);
-    for (int r = 0; r < m; ++r) {
-      rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r), rows.displacement[r]);
-      rows.lambda_sum[r] = lane::fmadd(h, rows.lambda[r], rows.lambda_sum[r]);
-    }
-    after_substep();
-  }
+  RowBlock<L>* const blocks[1] = {&rows};
+  tgs_solve_blocks<1>(blocks, substeps, dt, [&](int) { after_substep(); });
 }
 
 template <class L>

@@ -5,6 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+
 namespace lockstep {
 namespace {
 
@@ -112,6 +117,167 @@ TEST(RowSolver, RowHeldAtZeroLeavesTheOthersAsWithoutIt) {
       }
     }
   }
+}
+
+// A contact-only block of `slots` slots (normal, cone pair), D = J J^T +
+// 0.1 I from a random J over 12 DOFs, per lane: normals pushed in at
+// v_free -1, tangential free velocities of `slip` (large: the cones
+// project; small: they do not), a random warm start.
+template <class L>
+RowBlock<L> contact_slot_problem(int slots, double slip, unsigned seed) {
+  using T = lane::scalar_t<L>;
+  constexpr int W = static_cast<int>(lane::width_v<L>);
+  const int m = 3 * slots, dofs = 12;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  std::vector<double> J(m * dofs * W);
+  for (double& x : J) x = uniform(rng);
+  RowBlock<L> rows(m);
+  alignas(64) T lanes[W];
+  auto per_lane = [&](auto value) {
+    for (int l = 0; l < W; ++l) lanes[l] = static_cast<T>(value(l));
+    return lane::load<L>(lanes);
+  };
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j)
+      rows.D[i * m + j] = per_lane([&](int l) {
+        double sum = i == j ? 0.1 : 0.0;
+        for (int k = 0; k < dofs; ++k) sum += J[(i * dofs + k) * W + l] * J[(j * dofs + k) * W + l];
+        return sum;
+      });
+  for (int c = 0; c < slots; ++c) {
+    const int n = 3 * c;
+    rows.v_free[n] = per_lane([&](int) { return -1.0 + 0.2 * uniform(rng); });
+    rows.target[n] = rows.target_hi[n] = per_lane([&](int) { return 0.05 * uniform(rng); });
+    rows.lo[n] = L(T(0));
+    rows.hi[n] = L(std::numeric_limits<T>::infinity());
+    for (int t = 1; t < 3; ++t) {
+      rows.v_free[n + t] = per_lane([&](int) { return slip * uniform(rng); });
+      rows.target[n + t] = rows.target_hi[n + t] = L(T(0));
+      rows.bound_row[n + t] = n;
+      rows.mu[n + t] = per_lane([&](int) { return 0.5 + 0.4 * uniform(rng); });
+    }
+    rows.cone[n + 1] = 1;
+  }
+  for (int r = 0; r < m; ++r) rows.lambda[r] = per_lane([&](int) { return 0.1 + 0.1 * uniform(rng); });
+  return rows;
+}
+
+template <class L>
+lane::scalar_t<L> lane_value(const L& x, int l) {
+  if constexpr (lane::is_scalar_v<L>) return x;
+  else return x.get(l);
+}
+
+template <class L>
+void expect_same_impulses(const RowBlock<L>& a, const RowBlock<L>& b, const std::string& what) {
+  constexpr int W = static_cast<int>(lane::width_v<L>);
+  for (int r = 0; r < a.m; ++r)
+    for (int l = 0; l < W; ++l)
+      ASSERT_EQ(lane_value(a.lambda[r], l), lane_value(b.lambda[r], l)) << what << ", row " << r << ", lane " << l;
+}
+
+// pgs_solve's unrolled sweeps of contact-only blocks and pgs_solve_pair's
+// interleaved ones give the bits of the plain loop of gauss_seidel_sweep,
+// for every number of slots they unroll, with cones that project and that
+// do not, for the scalar reference and the SIMD lanes in float and double.
+template <class L>
+void check_unrolled_sweeps() {
+  int saturated = 0, inside = 0;  // cones that end projected, and inside
+  for (int slots = 1; slots <= kMaxUnrolledSlots; ++slots)
+    for (double slip : {0.01, 3.0}) {
+      const std::string what = std::to_string(slots) + " slots, slip " + std::to_string(slip);
+      RowBlock<L> loop = contact_slot_problem<L>(slots, slip, 7u * slots);
+      ASSERT_TRUE(is_contact_slots(loop));
+      RowBlock<L> unrolled = loop, first = loop, second = contact_slot_problem<L>(slots, slip, 7u * slots + 1);
+      RowBlock<L> second_alone = second;
+      invert_diagonal(loop);
+      for (int it = 0; it < 16; ++it) gauss_seidel_sweep(loop);
+      pgs_solve(unrolled, 16);
+      expect_same_impulses(loop, unrolled, "unrolled, " + what);
+      pgs_solve_pair(first, second, 16);
+      pgs_solve(second_alone, 16);
+      expect_same_impulses(loop, first, "first of a pair, " + what);
+      expect_same_impulses(second_alone, second, "second of a pair, " + what);
+      const RowBlock<L> start = contact_slot_problem<L>(slots, slip, 7u * slots);
+      double moved = 0;
+      for (int r = 0; r < loop.m; ++r)
+        for (int l = 0; l < static_cast<int>(lane::width_v<L>); ++l)
+          moved = std::max(moved, std::abs(double(lane_value(loop.lambda[r], l)) - double(lane_value(start.lambda[r], l))));
+      EXPECT_GT(moved, 1e-3) << "the sweeps change the impulses, " << what;
+      for (int n = 0; n < loop.m; n += 3)
+        for (int l = 0; l < static_cast<int>(lane::width_v<L>); ++l) {
+          const double a = lane_value(loop.lambda[n + 1], l), b = lane_value(loop.lambda[n + 2], l);
+          const double radius = double(lane_value(loop.mu[n + 1], l)) * lane_value(loop.lambda[n], l);
+          if (std::sqrt(a * a + b * b) > radius * (1 - 1e-4)) ++saturated;
+          else ++inside;
+        }
+    }
+  EXPECT_GT(saturated, 0) << "some cones project";
+  EXPECT_GT(inside, 0) << "some do not";
+}
+
+TEST(RowSolver, UnrolledContactSweepsMatchTheLoop) {
+  check_unrolled_sweeps<float>();
+  check_unrolled_sweeps<double>();
+  check_unrolled_sweeps<lane::simd<float>>();
+  check_unrolled_sweeps<lane::simd<double>>();
+}
+
+// TGS on two blocks side by side (tgs_solve_blocks) gives each block, its
+// impulses and lambda_sum, the bits of tgs_solve alone, with positional
+// normal rows whose targets follow their displacement, and calls each
+// block's substep hook once per substep.
+TEST(RowSolver, TgsPairSolvesEachAsAlone) {
+  using L = lane::simd<float>;
+  auto problem = [](unsigned seed) {
+    RowBlock<L> rows = contact_slot_problem<L>(4, 0.5, seed);
+    for (int n = 0; n < rows.m; n += 3) {
+      rows.positional[n] = 1;
+      rows.error[n] = L(-0.002f);  // penetrating: the target pushes out at the rate below
+      rows.rate[n] = L(20.0f);
+    }
+    return rows;
+  };
+  RowBlock<L> first = problem(11), second = problem(12), first_alone = first, second_alone = second;
+  int calls[2] = {0, 0};
+  RowBlock<L>* const blocks[2] = {&first, &second};
+  tgs_solve_blocks<2>(blocks, 8, 0.01f, [&](int i) { ++calls[i]; });
+  tgs_solve(first_alone, 8, 0.01f);
+  tgs_solve(second_alone, 8, 0.01f);
+  EXPECT_EQ(calls[0], 8);
+  EXPECT_EQ(calls[1], 8);
+  expect_same_impulses(first_alone, first, "first of a TGS pair");
+  expect_same_impulses(second_alone, second, "second of a TGS pair");
+  for (int r = 0; r < first.m; ++r)
+    for (int l = 0; l < static_cast<int>(lane::width_v<L>); ++l) {
+      ASSERT_EQ(first.lambda_sum[r].get(l), first_alone.lambda_sum[r].get(l)) << "row " << r;
+      ASSERT_EQ(second.lambda_sum[r].get(l), second_alone.lambda_sum[r].get(l)) << "row " << r;
+    }
+}
+
+// A pair whose blocks differ in layout (their slots, or boxed rows in one)
+// is solved one block after the other, each as pgs_solve solves it alone.
+TEST(RowSolver, PairOfDifferentBlocksSolvesEachAlone) {
+  using L = lane::simd<float>;
+  auto expect_each_alone = [](RowBlock<L> first, RowBlock<L> second, const std::string& what) {
+    RowBlock<L> first_alone = first, second_alone = second;
+    pgs_solve_pair(first, second, 16);
+    pgs_solve(first_alone, 16);
+    pgs_solve(second_alone, 16);
+    expect_same_impulses(first_alone, first, "first of " + what);
+    expect_same_impulses(second_alone, second, "second of " + what);
+  };
+  expect_each_alone(contact_slot_problem<L>(3, 3.0, 1), contact_slot_problem<L>(4, 3.0, 2), "3 slots and 4");
+  RowBlock<L> boxed = contact_slot_problem<L>(2, 0.01, 3);
+  for (int r : {1, 2}) {  // the first slot's friction rows boxed at +-0.5 rather than a cone
+    boxed.bound_row[r] = -1;
+    boxed.cone[r] = 0;
+    boxed.lo[r] = L(-0.5f);
+    boxed.hi[r] = L(0.5f);
+  }
+  ASSERT_FALSE(is_contact_slots(boxed));
+  expect_each_alone(boxed, contact_slot_problem<L>(2, 0.01, 4), "boxed rows and contacts");
 }
 
 // A positional row 0.05 from its limit, approaching at 10 per second over a
