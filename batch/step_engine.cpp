@@ -209,7 +209,7 @@ template <class L>
 void StepEngine<L>::step(int substeps, double dt) {
   const T h = static_cast<T>(dt / substeps);
   // blocks in pairs (the last one alone when their count is odd), whose
-  // solves run side by side
+  // solves may run side by side (step_blocks)
   const int blocks = batch_.state.q.blocks();
   tbb::parallel_for(tbb::blocked_range<int>(0, (blocks + 1) / 2), [&](const tbb::blocked_range<int>& range) {
     ScratchPair& pair = scratch_->local();
