@@ -184,6 +184,22 @@ void BatchDynamics<L>::potential_energy(const BatchState<Scalar>& s, BatchArray<
 }
 
 template <class L>
+void BatchDynamics<L>::linear_momentum(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  constexpr std::size_t W = lane::width_v<L>;
+  check(out, s.copies(), 3, "linear_momentum");
+  for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
+    joint_transforms<L>(km_, s.q.block(b), ws);
+    subtree_momentum<L>(km_, s.inertia.block(b), s.v.block(b), ws);
+    Vec3<L> sum = {L(0), L(0), L(0)};
+    for (int body = 0; body < km_.nbody; ++body)
+      if (km_.body_parent[body] < 0) sum = spatial::add(sum, root_momentum(ws, body));
+    lane::store(sum.x, out.block(b));
+    lane::store(sum.y, out.block(b) + W);
+    lane::store(sum.z, out.block(b) + 2 * W);
+  });
+}
+
+template <class L>
 void BatchDynamics<L>::incoming_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
   check(out, s.copies(), 6 * km_.nbody, "incoming_joint_forces");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {

@@ -68,6 +68,8 @@ class BatchDynamics {
   // (1) kinetic and potential energy.
   void kinetic_energy(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
   void potential_energy(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
+  // (3) linear momentum, world axes: the sum over all bodies of m v_com.
+  void linear_momentum(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
   // (nbody x 6) force and torque each joint transmits to its child body under
   // s.tau and s.wrench, world axes, torque about the joint origin.
   void incoming_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;

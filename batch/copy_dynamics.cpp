@@ -174,6 +174,9 @@ double CopyDynamics::kinetic_energy(const Eigen::VectorXd& q, const Eigen::Vecto
 double CopyDynamics::potential_energy(const Eigen::VectorXd& q) const {
   return evaluate({&q}, LOCKSTEP_BATCH_METHOD(potential_energy), 1)[0];
 }
+Eigen::Vector3d CopyDynamics::linear_momentum(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const {
+  return evaluate({&q, &v}, LOCKSTEP_BATCH_METHOD(linear_momentum), 3);
+}
 Eigen::MatrixXd CopyDynamics::com_jacobian(const Eigen::VectorXd& q) const {
   const int rows = 6 * model_->nbody;
   return row_major(evaluate({&q}, LOCKSTEP_BATCH_METHOD(com_jacobian), rows * model_->nv), rows, model_->nv);

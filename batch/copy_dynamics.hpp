@@ -44,6 +44,8 @@ class CopyDynamics {
                                    const Eigen::MatrixXd* link_wrench = nullptr) const;
   double kinetic_energy(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const;
   double potential_energy(const Eigen::VectorXd& q) const;
+  // Linear momentum, world axes: the sum over all bodies of m v_com.
+  Eigen::Vector3d linear_momentum(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const;
   // (6 nbody x nv) rows [v_com; w] of every body, world axes (PhysX's dense Jacobian).
   Eigen::MatrixXd com_jacobian(const Eigen::VectorXd& q) const;
   // (6 x nv) rows [v; w], world axes, of the point at `offset` in frame `frame`.

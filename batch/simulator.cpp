@@ -61,6 +61,8 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
           "StepOptions::error_reduction must lie in [0, 1], got " + std::to_string(o.error_reduction));
   require(o.warm_start >= 0 && o.warm_start <= 1,
           "StepOptions::warm_start must lie in [0, 1], got " + std::to_string(o.warm_start));
+  require(!o.conserve_linear_momentum || o.integrator == Integrator::SemiImplicitEuler,
+          "StepOptions::conserve_linear_momentum needs the semi-implicit Euler integrator");
   require(static_cast<int>(dofs.size()) == model.nv, "Simulator: " + std::to_string(dofs.size()) +
                                                          " DOF settings for a model with " + std::to_string(model.nv) +
                                                          " DOFs");
@@ -92,6 +94,9 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     if (type == JointType::Free)
       require(d.drive_stiffness == 0 && d.drive_damping == 0,
               where + "a floating base takes no drive (set the gains of its 6 DOFs to 0)");
+    if (type == JointType::Free && o.conserve_linear_momentum)
+      require(d.damping == 0 && model.dof_armature[k] == 0,
+              where + "conserve_linear_momentum needs a floating base without damping or armature");
     if (!one_dof) {
       require(d.spring_stiffness == 0, where + "springs act on revolute and prismatic joints only");
       require(d.limit_stiffness == 0 || (std::isinf(d.lower) && std::isinf(d.upper)),
@@ -237,6 +242,13 @@ std::string Simulator::describe_plan() const {
   if (contacts)
     out << " and " << per_contact << " rows per contact point, up to " << options_.contacts.capacity << " points";
   out << "\n";
+  if (options_.conserve_linear_momentum) {
+    int floating = 0;
+    for (int b = 0; b < model_->nbody; ++b)
+      floating += model_->body_parent[b] < 0 && model_->body_joint[b] == JointType::Free;
+    out << "  linear momentum projection: " << (floating > 0 ? "runs" : "skipped") << " (" << floating
+        << " floating articulations)\n";
+  }
   out << "  fault check: always\n";
   return out.str();
 }
@@ -446,9 +458,20 @@ void Simulator::check_per_dof(const Eigen::VectorXd& values, const char* what) c
                                                             model_->dof_name[k] + ") needs a finite value >= 0");
 }
 
+// With conserve_linear_momentum a floating base takes no damping or armature
+// (batch/step_momentum.cpp).
+void Simulator::check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const {
+  if (!options_.conserve_linear_momentum) return;
+  for (int k = 0; k < model_->nv; ++k)
+    require(values[k] == 0 || model_->body_joint[model_->dof_body[k]] != JointType::Free,
+            std::string(what) + ": DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
+                ") belongs to a floating base, which takes none with conserve_linear_momentum");
+}
+
 void Simulator::set_joint_damping(int copy, const Eigen::VectorXd& damping) {
   check_copy(copy);
   check_per_dof(damping, "set_joint_damping");
+  check_free_of_floating_bases(damping, "set_joint_damping");
   visit([&](auto& b) { b.joint_damping.set(copy, damping); });
   note_copy_inputs(copy);
 }
@@ -456,6 +479,7 @@ void Simulator::set_joint_damping(int copy, const Eigen::VectorXd& damping) {
 void Simulator::set_armature(int copy, const Eigen::VectorXd& armature) {
   check_copy(copy);
   check_per_dof(armature, "set_armature");
+  check_free_of_floating_bases(armature, "set_armature");
   visit([&](auto& b) { b.armature.set(copy, armature); });
 }
 

@@ -227,6 +227,7 @@ class Simulator {
   void check_copy(int copy) const;
   void check_velocity(const Eigen::VectorXd& v, const char* what) const;
   void check_per_dof(const Eigen::VectorXd& values, const char* what) const;  // nv finite values >= 0
+  void check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const;
   // Replans when a copy's drive gains, damping or wrenches need a stage the
   // plan skips.
   void note_copy_inputs(int copy);

@@ -33,7 +33,7 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv), needed(joint_rows + contact.capacity * contact.rows_per_contact),
       needed_source(needed.m), need(joint_rows), violated(joint_rows), joint_impulse(joint_rows),
-      held_displacement(joint_rows) {}
+      held_displacement(joint_rows), momentum_target(km.nbody), articulation_mass(km.nbody) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -60,6 +60,12 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     jm_.stribeck_velocity.push_back(static_cast<T>(d.stribeck_velocity));
   }
   set_plan(plan);
+  for (int b = 0; b < model.nbody; ++b) {
+    const int parent = model.body_parent[b];
+    body_root_.push_back(parent < 0 ? b : body_root_[parent]);
+    if (parent < 0 && model.body_joint[b] == JointType::Free && options.conserve_linear_momentum)
+      floating_roots_.push_back(b);
+  }
 
   // Solver rows, DOF by DOF: position limit, velocity limit, friction.
   std::vector<int> column_of(nv, -1);
@@ -362,6 +368,7 @@ void StepEngine<L>::end_block(int block, T h, Scratch& s) {
   s.clock.start();
   if (options_.integrator != Integrator::RK4) {
     if (s.solving) finish_rows(block, h, s);
+    if (!floating_roots_.empty()) linear_momentum_target(block, h, s);
     if (!contact_pairs_.empty())
       store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
                         contact_arrays(block));
@@ -372,6 +379,7 @@ void StepEngine<L>::end_block(int block, T h, Scratch& s) {
     turn_free_linear<L>(km_, velocity, step, fields(s.u1), Turn::ToEnd);
   }
   if (options_.record_applied_torque) record_applied(block, h, s);
+  if (!floating_roots_.empty()) keep_linear_momentum(block, q_next, s);
 
   // Faults: a copy with non-finite inputs or state is flagged; with
   // reset_on_fault it restarts from its initial state.

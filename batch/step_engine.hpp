@@ -101,6 +101,10 @@ class StepEngine final : public Simulator::Engine {
     int needed_joint_rows = 0;  // the joint rows in `needed`, before its contact rows
     std::vector<lane::mask_t<L>> need, violated;
     std::vector<L> joint_impulse, held_displacement;
+    // keep_linear_momentum's, per floating root body: the momentum the step
+    // must leave, and the articulation's mass
+    std::vector<Vec3<L>> momentum_target;  // (nbody)
+    std::vector<L> articulation_mass;      // (nbody)
     // carried from begin_block to end_block
     L input_fault;
     bool solving = false;      // the block has rows to solve this step
@@ -149,6 +153,11 @@ class StepEngine final : public Simulator::Engine {
   int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
   void make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings);
   void record_applied(int block, T h, Scratch& s);
+  // StepOptions::conserve_linear_momentum (batch/step_momentum.cpp): the
+  // target from the start of the step, before the Free joints' velocities
+  // turn to the end frame; then the bases' velocities corrected at q1.
+  void linear_momentum_target(int block, T h, Scratch& s);
+  void keep_linear_momentum(int block, const T* q1, Scratch& s);
 
   StepOptions options_;
   StepPlan plan_;
@@ -164,6 +173,8 @@ class StepEngine final : public Simulator::Engine {
   std::vector<JointRowSpec<T>> row_specs_;
   std::vector<int> column_dof_;
   std::vector<ContactPairSpec<T>> contact_pairs_;  // empty unless plan.contacts
+  std::vector<int> floating_roots_;  // root bodies on a Free joint, with conserve_linear_momentum
+  std::vector<int> body_root_;       // (nbody) the root of each body's articulation
   ContactParams<T> contact_params_;
   StepBatch<T> batch_;
   BatchArray<T> model_inertia_;  // one block of the model's inertial parameters

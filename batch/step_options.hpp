@@ -102,6 +102,14 @@ struct StepOptions {
   // major or intermediate axis keeps its energy instead of blowing up as
   // with the explicit force. Not with RK4.
   bool implicit_gyroscopic = true;
+  // Each floating articulation (Free root) leaves the step with exactly its
+  // momentum before it plus the impulse of gravity, link wrenches, the
+  // base's feedforward force and the solver's rows (contacts included): its
+  // base's linear velocity is corrected by the O(h^2) per step that
+  // semi-implicit Euler otherwise lets the momentum drift. Semi-implicit
+  // Euler only; the floating bases may have no damping or armature. Costs
+  // two kinematics passes per step (docs/stability.md).
+  bool conserve_linear_momentum = false;
   bool reset_on_fault = false;  // put a faulted copy back to its initial state
   bool record_applied_torque = false;  // keep RaiSim's per-source torque of the last step
   ContactSettings contacts;  // ground, static boxes, filters, contact parameters

@@ -443,7 +443,8 @@ void read_contacts(const json::Value& v, const At& at, const Model& model, StepO
 void read_step(const json::Value& v, const At& at, StepOptions& s) {
   const Object o(v, at,
                  {"dt", "substeps", "solver", "iterations", "integrator", "precision", "lanes", "error_reduction",
-                  "warm_start", "implicit_gyroscopic", "reset_on_fault", "record_applied_torque"});
+                  "warm_start", "implicit_gyroscopic", "conserve_linear_momentum", "reset_on_fault",
+                  "record_applied_torque"});
   set_number(o, "dt", s.dt, Bound::Positive);
   set_int(o, "substeps", s.substeps, 1);
   set_token(o, "solver", s.solver, kSolvers);
@@ -454,6 +455,7 @@ void read_step(const json::Value& v, const At& at, StepOptions& s) {
   set_number(o, "error_reduction", s.error_reduction, Bound::UnitInterval);
   set_number(o, "warm_start", s.warm_start, Bound::UnitInterval);
   set_bool(o, "implicit_gyroscopic", s.implicit_gyroscopic);
+  set_bool(o, "conserve_linear_momentum", s.conserve_linear_momentum);
   set_bool(o, "reset_on_fault", s.reset_on_fault);
   set_bool(o, "record_applied_torque", s.record_applied_torque);
 }
@@ -825,6 +827,7 @@ json::Value step_value(const StepOptions& s) {
                        {"error_reduction", number_value(s.error_reduction)},
                        {"warm_start", number_value(s.warm_start)},
                        {"implicit_gyroscopic", bool_value(s.implicit_gyroscopic)},
+                       {"conserve_linear_momentum", bool_value(s.conserve_linear_momentum)},
                        {"reset_on_fault", bool_value(s.reset_on_fault)},
                        {"record_applied_torque", bool_value(s.record_applied_torque)}});
 }

@@ -137,6 +137,7 @@ struct Workspace {
   std::vector<L> joint_u;             // (nv) u = tau - S^T pA
   std::vector<L> matrix;              // (nv x nv) mass matrix / factorisation
   std::vector<L> vector;              // (nv) temporary
+  std::vector<Vec3<L>> momentum;      // (nbody) linear momentum of each body's subtree, world axes
 
   template <class T>
   explicit Workspace(const KernelModel<T>& km);
@@ -147,7 +148,7 @@ template <class T>
 Workspace<L>::Workspace(const KernelModel<T>& km)
     : local(km.nbody), world(km.nbody), velocity(km.nbody), accel(km.nbody),
       force(km.nbody), inertia(km.nbody), joint_U(6 * km.nv), joint_Dinv_offset(km.nbody), joint_u(km.nv),
-      matrix(km.nv * km.nv), vector(km.nv) {
+      matrix(km.nv * km.nv), vector(km.nv), momentum(km.nbody) {
   int offset = 0;
   for (int b = 0; b < km.nbody; ++b) {
     joint_Dinv_offset[b] = offset;

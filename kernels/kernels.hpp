@@ -11,6 +11,7 @@
 #include "kernels/jacobian.hpp"
 #include "kernels/joint_force.hpp"
 #include "kernels/kinematics.hpp"
+#include "kernels/momentum.hpp"
 #include "kernels/rnea.hpp"
 
 #define LOCKSTEP_KERNEL_TEMPLATES(EXTERN, L)                                                                         \
@@ -35,6 +36,9 @@
                                       Workspace<L>&);                                                                 \
   EXTERN template L potential_energy<L>(const KernelModel<lane::scalar_t<L>>&,                                      \
                                         const BlockInputs<lane::scalar_t<L>>&, const Workspace<L>&);                 \
+  EXTERN template void subtree_momentum<L>(const KernelModel<lane::scalar_t<L>>&, const lane::scalar_t<L>*,        \
+                                           const lane::scalar_t<L>*, Workspace<L>&);                                 \
+  EXTERN template Vec3<L> root_momentum<L>(const Workspace<L>&, int);                                                \
   EXTERN template void point_jacobian<L>(const KernelModel<lane::scalar_t<L>>&, const Workspace<L>&, int,           \
                                          const Vec3<L>&, lane::scalar_t<L>*);                                         \
   EXTERN template void com_jacobian<L>(const KernelModel<lane::scalar_t<L>>&, const lane::scalar_t<L>*,             \

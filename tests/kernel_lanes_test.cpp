@@ -71,6 +71,7 @@ std::vector<Operation<L>> operations(const Model& m) {
        [last_frame](const D& d, const S& s, A& o) { d.point_jacobian(s, last_frame, Eigen::Vector3d(0.1, -0.2, 0.3), o); }},
       {"kinetic_energy", 1, [](const D& d, const S& s, A& o) { d.kinetic_energy(s, o); }},
       {"potential_energy", 1, [](const D& d, const S& s, A& o) { d.potential_energy(s, o); }},
+      {"linear_momentum", 3, [](const D& d, const S& s, A& o) { d.linear_momentum(s, o); }},
       {"incoming_joint_forces", 6 * m.nbody, [](const D& d, const S& s, A& o) { d.incoming_joint_forces(s, o); }},
       {"integrate", m.nq, [](const D& d, const S& s, A& o) { d.integrate(s.q, s.v, T(0.01), o); }},
   };
