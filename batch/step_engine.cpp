@@ -1,5 +1,7 @@
 #include "batch/step_engine.hpp"
 
+#include "batch/denormal_guard.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -218,6 +220,7 @@ void StepEngine<L>::step(int substeps, double dt) {
   // solves may run side by side (step_blocks)
   const int blocks = batch_.state.q.blocks();
   tbb::parallel_for(tbb::blocked_range<int>(0, (blocks + 1) / 2), [&](const tbb::blocked_range<int>& range) {
+    const DenormalGuard flush_denormals;
     ScratchPair& pair = scratch_->local();
     for (Scratch& s : pair.s) s.clock.on = profiling_;
     for (int p = range.begin(); p != range.end(); ++p)
