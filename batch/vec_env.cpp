@@ -21,13 +21,11 @@ VecEnvOptions checked(const Model& model, VecEnvOptions o) {
   require(o.control_steps >= 1, "control_steps must be at least 1, got " + std::to_string(o.control_steps));
   require(o.episode_steps >= 0, "episode_steps must be >= 0 (0: no truncation), got " + std::to_string(o.episode_steps));
   validate_randomization(o.randomization);
-  if (o.initial_q.size() == 0) o.initial_q = model.neutral_configuration();
-  if (o.initial_v.size() == 0) o.initial_v = Eigen::VectorXd::Zero(model.nv);
+  fill_initial_state(model, o);
   require(o.initial_q.size() == model.nq, "initial_q expects " + std::to_string(model.nq) + " values, got " +
                                               std::to_string(o.initial_q.size()));
   require(o.initial_v.size() == model.nv, "initial_v expects " + std::to_string(model.nv) + " values, got " +
                                               std::to_string(o.initial_v.size()));
-  if (o.drive_target_q.size() == 0) o.drive_target_q = o.initial_q;
   require(o.drive_target_q.size() == model.nq, "drive_target_q expects " + std::to_string(model.nq) +
                                                    " values, got " + std::to_string(o.drive_target_q.size()));
   require(o.drive_target_q.allFinite(), "drive_target_q must be finite");
@@ -38,6 +36,12 @@ VecEnvOptions checked(const Model& model, VecEnvOptions o) {
 }
 
 }  // namespace
+
+void fill_initial_state(const Model& model, VecEnvOptions& options) {
+  if (options.initial_q.size() == 0) options.initial_q = model.neutral_configuration();
+  if (options.initial_v.size() == 0) options.initial_v = Eigen::VectorXd::Zero(model.nv);
+  if (options.drive_target_q.size() == 0) options.drive_target_q = options.initial_q;
+}
 
 const char* action_mode_name(ActionMode mode) {
   return mode == ActionMode::Torque ? "torque" : "position_target";

@@ -60,6 +60,10 @@ struct VecEnvOptions {
   Eigen::VectorXd drive_target_q;
 };
 
+// Fills the state VecEnvOptions may leave empty: initial_q (the neutral
+// configuration), initial_v (rest), drive_target_q (initial_q).
+void fill_initial_state(const Model& model, VecEnvOptions& options);
+
 // Observations, one row per copy, each field contiguous (row-major): read
 // them in place. The base is the first articulation's root body: its pose
 // and twist from q and v when it floats, else the fixed root frame at rest.

@@ -165,11 +165,6 @@ double pose_error(const Model& model, const Simulator& sim, const Eigen::VectorX
   return error;
 }
 
-// The drives' position targets: the scene's, else its initial pose.
-const Eigen::VectorXd& drive_targets(const Scene& scene) {
-  return scene.env.drive_target_q.size() > 0 ? scene.env.drive_target_q : scene.env.initial_q;
-}
-
 // Times the step for one precision at every thread count: a warm-up, then
 // `repeats` runs of `steps` steps, each from the initial state; then one
 // profiled run on the first thread count for the time split by phase. Every
@@ -182,7 +177,7 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   Simulator sim(model, config.copies, options, scene.env.dofs);
   const Eigen::VectorXd& q0 = scene.env.initial_q;
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
-  const Eigen::VectorXd& target = drive_targets(scene);
+  const Eigen::VectorXd& target = scene.env.drive_target_q;
   for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, target, v0);
   sim.set_state_all(q0, v0);
   if (plan.empty()) plan = sim.describe_plan();
@@ -421,7 +416,7 @@ std::vector<std::pair<std::string, double>> joint_targets(const Scene& scene) {
   std::vector<std::pair<std::string, double>> targets;
   for (int b = 0; b < m.nbody; ++b)
     if (m.body_joint[b] == JointType::Revolute || m.body_joint[b] == JointType::Prismatic)
-      targets.emplace_back(m.joint_name[b], drive_targets(scene)[m.body_q_offset[b]]);
+      targets.emplace_back(m.joint_name[b], scene.env.drive_target_q[m.body_q_offset[b]]);
   return targets;
 }
 

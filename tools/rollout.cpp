@@ -142,9 +142,7 @@ Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, b
     scene.env.initial_q = standing.q0;
     scene.env.action_mode = ActionMode::PositionTarget;
   }
-  // A scene file without an initial state starts at the neutral pose, at rest (as VecEnv does).
-  if (scene.env.initial_q.size() == 0) scene.env.initial_q = scene.model.neutral_configuration();
-  if (scene.env.initial_v.size() == 0) scene.env.initial_v = Eigen::VectorXd::Zero(scene.model.nv);
+  fill_initial_state(scene.model, scene.env);  // what VecEnv fills too: bench reads the scene's state directly
   if (no_contacts) disable_contacts(scene);
   return scene;
 }
