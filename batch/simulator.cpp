@@ -243,9 +243,8 @@ std::string Simulator::describe_plan() const {
     out << " and " << per_contact << " rows per contact point, up to " << options_.contacts.capacity << " points";
   out << "\n";
   if (options_.conserve_linear_momentum) {
-    int floating = 0;
-    for (int b = 0; b < model_->nbody; ++b)
-      floating += model_->body_parent[b] < 0 && model_->body_joint[b] == JointType::Free;
+    const auto floating = std::count_if(model_->articulations.begin(), model_->articulations.end(),
+                                        [](const Articulation& a) { return a.floating_base; });
     out << "  linear momentum projection: " << (floating > 0 ? "runs" : "skipped") << " (" << floating
         << " floating articulations)\n";
   }

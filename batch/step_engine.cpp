@@ -62,11 +62,13 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     jm_.stribeck_velocity.push_back(static_cast<T>(d.stribeck_velocity));
   }
   set_plan(plan);
-  for (int b = 0; b < model.nbody; ++b) {
-    const int parent = model.body_parent[b];
-    body_root_.push_back(parent < 0 ? b : body_root_[parent]);
-    if (parent < 0 && model.body_joint[b] == JointType::Free && options.conserve_linear_momentum)
-      floating_roots_.push_back(b);
+  if (options.conserve_linear_momentum) {
+    momentum_root_.assign(model.nbody, -1);
+    for (const Articulation& a : model.articulations)
+      if (a.floating_base) {
+        floating_roots_.push_back(a.first_body);
+        std::fill_n(momentum_root_.begin() + a.first_body, a.body_count, a.first_body);
+      }
   }
 
   // Solver rows, DOF by DOF: position limit, velocity limit, friction.

@@ -173,8 +173,10 @@ class StepEngine final : public Simulator::Engine {
   std::vector<JointRowSpec<T>> row_specs_;
   std::vector<int> column_dof_;
   std::vector<ContactPairSpec<T>> contact_pairs_;  // empty unless plan.contacts
-  std::vector<int> floating_roots_;  // root bodies on a Free joint, with conserve_linear_momentum
-  std::vector<int> body_root_;       // (nbody) the root of each body's articulation
+  // With conserve_linear_momentum: the floating articulations' root bodies,
+  // and per body the root whose momentum it counts in (-1: none)
+  std::vector<int> floating_roots_;
+  std::vector<int> momentum_root_;
   ContactParams<T> contact_params_;
   StepBatch<T> batch_;
   BatchArray<T> model_inertia_;  // one block of the model's inertial parameters

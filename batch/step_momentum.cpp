@@ -47,8 +47,8 @@ void StepEngine<L>::linear_momentum_target(int block, T h, Scratch& s) {
   }
   const T* wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
   for (int b = 0; b < km_.nbody; ++b) {
-    const int root = body_root_[b];
-    if (km_.body_joint[root] != JointType::Free) continue;
+    const int root = momentum_root_[b];
+    if (root < 0) continue;
     s.articulation_mass[root] = s.articulation_mass[root] + lane::load<L>(inertia + kInertiaParams * b * W);
     if (wrench) {
       const T* F = wrench + 6 * b * W;

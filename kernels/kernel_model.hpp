@@ -137,7 +137,7 @@ struct Workspace {
   std::vector<L> joint_u;             // (nv) u = tau - S^T pA
   std::vector<L> matrix;              // (nv x nv) mass matrix / factorisation
   std::vector<L> vector;              // (nv) temporary
-  std::vector<Vec3<L>> momentum;      // (nbody) linear momentum of each body's subtree, world axes
+  std::vector<Vec3<L>> momentum;      // (nbody) linear momentum of each body's subtree, body axes
 
   template <class T>
   explicit Workspace(const KernelModel<T>& km);
