@@ -39,6 +39,8 @@ void StepEngine<L>::linear_momentum_target(int block, T h, Scratch& s) {
   for (int k = 0; k < nv; ++k)
     lane::store(s.solving ? s.u0[k] + (s.u1[k] - s.u_free[k]) : s.u0[k], velocity + k * W);
   subtree_momentum<L>(km_, inertia, velocity, s.ws);
+  // momentum_target first sums each articulation's external force (world
+  // axes), then becomes P(q0, v0 + v1 - u*) + h (force + m g)
   for (int root : floating_roots_) {
     s.articulation_mass[root] = L(T(0));
     const int dof0 = km_.body_dof_offset[root];

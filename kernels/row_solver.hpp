@@ -331,15 +331,11 @@ void tgs_solve_blocks(RowBlock<L>* const* blocks, int substeps, lane::scalar_t<L
   }
 }
 
-template <class L, class AfterSubstep>
-void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt, AfterSubstep&& after_substep) {
-  RowBlock<L>* const blocks[1] = {&rows};
-  tgs_solve_blocks<1>(blocks, substeps, dt, [&](int) { after_substep(); });
-}
-
+// TGS on one block.
 template <class L>
 void tgs_solve(RowBlock<L>& rows, int substeps, lane::scalar_t<L> dt) {
-  tgs_solve(rows, substeps, dt, [] {});
+  RowBlock<L>* const blocks[1] = {&rows};
+  tgs_solve_blocks<1>(blocks, substeps, dt, [](int) {});
 }
 
 }  // namespace lockstep
