@@ -14,10 +14,11 @@
 namespace lockstep::test {
 namespace {
 
-Model floating(const char* name) {
-  UrdfOptions options;
-  options.floating_base = true;
-  return load_urdf(shared_model_path(name), options);
+// anymal_b's leg joints under PD (kp 300, kd 8), as the standing tests drive them.
+std::vector<DofSettings> leg_drives(const Model& model) {
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (int k = 6; k < model.nv; ++k) dofs[k].drive_stiffness = 300, dofs[k].drive_damping = 8;
+  return dofs;
 }
 
 StepOptions options(Precision precision, bool conserve) {
@@ -32,9 +33,8 @@ StepOptions options(Precision precision, bool conserve) {
 // step, P(q1, v1) - P(q0, v0) = h (m g + F_wrench + R0 f_base). Returns the
 // worst error of that balance over 0.5 s, relative to |P| at the end.
 double free_fall_balance_error(Precision precision, bool conserve) {
-  const Model model = floating("anymal_b");
-  std::vector<DofSettings> dofs = default_dof_settings(model);
-  for (int k = 6; k < model.nv; ++k) dofs[k].drive_stiffness = 300, dofs[k].drive_damping = 8;
+  const Model model = load_shared_model("anymal_b", true);
+  const std::vector<DofSettings> dofs = leg_drives(model);
   const StepOptions o = options(precision, conserve);
   Simulator sim(model, 1, o, dofs);
   const Eigen::VectorXd stand = stance(model);
@@ -51,8 +51,7 @@ double free_fall_balance_error(Precision precision, bool conserve) {
   tau.head<3>() = base_force;  // on the Free joint's linear DOFs: body axes
   sim.set_torque(0, tau);
   const CopyDynamics dyn(model);
-  double mass = 0;
-  for (double m : model.body_mass) mass += m;
+  const double mass = model.total_mass();
   double worst = 0, scale = 0;
   for (int i = 0; i < 250; ++i) {
     const Eigen::VectorXd q0 = sim.q(0);
@@ -88,9 +87,8 @@ TEST(MomentumProjection, FreeFallChangesMomentumByTheExternalImpulseOnly) {
 // h m g plus the contacts' impulses on its feet (Simulator::contacts), to
 // rounding, while it stands as well as without the projection.
 TEST(MomentumProjection, StandingChangesMomentumByGravityAndTheContacts) {
-  const Model model = floating("anymal_b");
-  std::vector<DofSettings> dofs = default_dof_settings(model);
-  for (int k = 6; k < model.nv; ++k) dofs[k].drive_stiffness = 300, dofs[k].drive_damping = 8;
+  const Model model = load_shared_model("anymal_b", true);
+  const std::vector<DofSettings> dofs = leg_drives(model);
   StepOptions o = options(Precision::Double, true);
   o.contacts.ground = true;
   Simulator sim(model, 1, o, dofs);
@@ -100,8 +98,7 @@ TEST(MomentumProjection, StandingChangesMomentumByGravityAndTheContacts) {
   sim.set_state(0, q, Eigen::VectorXd::Zero(model.nv));
   sim.set_drive_target(0, target, Eigen::VectorXd::Zero(model.nv));
   const CopyDynamics dyn(model);
-  double mass = 0;
-  for (double m : model.body_mass) mass += m;
+  const double mass = model.total_mass();
   double worst = 0;
   int touching = 0;
   for (int i = 0; i < 1000; ++i) {
@@ -124,7 +121,7 @@ TEST(MomentumProjection, StandingChangesMomentumByGravityAndTheContacts) {
 }
 
 TEST(MomentumProjection, RefusesWhatItCannotKeepExact) {
-  const Model model = floating("anymal_b");
+  const Model model = load_shared_model("anymal_b", true);
   StepOptions rk4 = options(Precision::Double, true);
   rk4.integrator = Integrator::RK4;
   expect_invalid([&] { Simulator sim(model, 1, rk4); }, "conserve_linear_momentum needs the semi-implicit Euler");
