@@ -343,6 +343,37 @@ lane::mask_t<L> contact_rows_at_rest(const RowBlock<L>& rows, int first, const C
   return rest;
 }
 
+// The K x K block of D between slots c1 <= c2: D_ij = Z_i . Y_j over the
+// DOFs they share (common[0, shared)), every entry summed in DOF order
+// from zero. The K x K sums run side by side over the shared DOFs, each
+// DOF's index loaded once; within one slot only j >= i, mirrored.
+template <int K, class L>
+LOCKSTEP_INLINE void slot_pair_delassus(const ContactScratch<L>& s, int c1, int c2, const int* common, int shared,
+                                        int first, RowBlock<L>& rows) {
+  using T = lane::scalar_t<L>;
+  const int nv = s.nv, m = rows.m;
+  const L* Z = &s.Z[c1 * K * nv];
+  const L* Y = &s.Y[c2 * K * nv];
+  L sum[K][K];
+  for (int i = 0; i < K; ++i)
+    for (int j = 0; j < K; ++j) sum[i][j] = L(T(0));
+  for (int t = 0; t < shared; ++t) {
+    const int dof = common[t];
+    L z[K], y[K];
+    for (int i = 0; i < K; ++i) {
+      z[i] = Z[i * nv + dof];
+      y[i] = Y[i * nv + dof];
+    }
+    for (int i = 0; i < K; ++i)
+      for (int j = 0; j < K; ++j) sum[i][j] = lane::fmadd(z[i], y[j], sum[i][j]);
+  }
+  for (int i = 0; i < K; ++i)
+    for (int j = c1 == c2 ? i : 0; j < K; ++j) {
+      const int a = first + c1 * K + i, b = first + c2 * K + j;
+      rows.D[a * m + b] = rows.D[b * m + a] = sum[i][j];
+    }
+}
+
 // The contact rows' block of D = J Mt^-1 J^T, with Mt factored in H as
 // L^T Dg L (factor_step_mass_matrix): Y = L^-T J^T and Z = Dg^-1 Y per row,
 // D_ij = Z_i . Y_j. A row's J is zero outside the DOFs that move its
@@ -385,14 +416,8 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
       const int shared = static_cast<int>(
           std::set_intersection(s1, s1 + s.support_size[c1], s2, s2 + s.support_size[c2], s.common.begin()) -
           s.common.begin());
-      for (int i = c1 * k; i < (c1 + 1) * k; ++i)
-        for (int j = c2 == c1 ? i : c2 * k; j < (c2 + 1) * k; ++j) {
-          const L* Zi = &s.Z[i * nv];
-          const L* Yj = &s.Y[j * nv];
-          L sum(T(0));
-          for (int t = 0; t < shared; ++t) sum = lane::fmadd(Zi[common[t]], Yj[common[t]], sum);
-          rows.D[(first + i) * m + first + j] = rows.D[(first + j) * m + first + i] = sum;
-        }
+      if (k == 3) slot_pair_delassus<3>(s, c1, c2, common, shared, first, rows);
+      else slot_pair_delassus<4>(s, c1, c2, common, shared, first, rows);
     }
   const L compliance(p.stiffness > 0 ? T(1) / (h * (p.stiffness * h + p.damping)) : T(0));
   const L zero(T(0)), one(T(1));
