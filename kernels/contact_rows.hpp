@@ -466,11 +466,17 @@ void contact_velocity_change(const KernelModel<lane::scalar_t<L>>& km, const lan
   const int nv = s.nv, k = s.k;
   L* dv = s.dv.data();
   for (int j = 0; j < nv; ++j) dv[j] = L(T(0));
+  // per DOF, the slot's rows summed in registers in row order (the same
+  // chain of multiply-adds as row after row, one load and store per DOF)
   for (int c = 0; c < s.slots; ++c) {
     const int* support = &s.support[c * nv];
-    for (int i = c * k; i < (c + 1) * k; ++i)
-      for (int t = 0; t < s.support_size[c]; ++t)
-        dv[support[t]] = lane::fmadd(x[i], s.Z[i * nv + support[t]], dv[support[t]]);
+    const L* Z = &s.Z[c * k * nv];
+    for (int t = 0; t < s.support_size[c]; ++t) {
+      const int j = support[t];
+      L sum = dv[j];
+      for (int i = 0; i < k; ++i) sum = lane::fmadd(x[c * k + i], Z[i * nv + j], sum);
+      dv[j] = sum;
+    }
   }
   ltdl_lower_solve<L>(km, H, reinterpret_cast<T*>(dv));
 }

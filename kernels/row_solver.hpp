@@ -45,7 +45,7 @@ struct RowBlock {
   std::vector<L> error;        // (m) position error of positional rows (>= 0: separated)
   std::vector<L> lambda;       // (m) impulses: warm start in, solution out
   std::vector<L> lambda_sum;   // (m) TGS: sum over substeps of h lambda (the position-level impulse)
-  std::vector<L> displacement; // (m) TGS: row displacement accumulated over substeps
+  std::vector<L> displacement; // (m) TGS: positional rows' displacement accumulated over substeps
 
   // Room for `capacity` rows; m (the rows of the current block) may be set
   // to anything up to it, D then being m x m.
@@ -297,10 +297,11 @@ inline L tgs_target(const RowBlock<L>& rows, int r, const L& displacement, const
 // TGS over `substeps` substeps of h = dt / substeps, on B blocks (1 or
 // 2) side by side (sweep_blocks): before each sweep the positional rows'
 // targets follow their error advanced by the displacement so far
-// (tgs_target); after it every row's displacement grows by h v_r and
-// lambda_sum by h lambda_r (the integrator moves positions by h v_free plus
-// the lambda_sum-mapped impulses), and `after_substep(i)` runs for each
-// block i (the caller's look at the impulses of the substep).
+// (tgs_target); after it every positional row's displacement grows by
+// h v_r (the other rows' is not needed) and every row's lambda_sum by
+// h lambda_r (the integrator moves positions by h v_free plus the
+// lambda_sum-mapped impulses), and `after_substep(i)` runs for each block
+// i (the caller's look at the impulses of the substep).
 template <int B, class L, class AfterSubstep>
 void tgs_solve_blocks(RowBlock<L>* const* blocks, int substeps, lane::scalar_t<L> dt, AfterSubstep&& after_substep) {
   using T = lane::scalar_t<L>;
@@ -323,7 +324,7 @@ void tgs_solve_blocks(RowBlock<L>* const* blocks, int substeps, lane::scalar_t<L
     for (int i = 0; i < B; ++i) {
       RowBlock<L>& rows = *blocks[i];
       for (int r = 0; r < rows.m; ++r) {
-        rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r), rows.displacement[r]);
+        if (rows.positional[r]) rows.displacement[r] = lane::fmadd(h, row_velocity(rows, r), rows.displacement[r]);
         rows.lambda_sum[r] = lane::fmadd(h, rows.lambda[r], rows.lambda_sum[r]);
       }
       after_substep(i);
