@@ -553,7 +553,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
   if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
-  s.joint_block = false;  // built by the first round that needs a joint row
+  s.joint_block = s.coupling = false;  // built by the first round that needs them
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
   // the joint rows a lane needs at the free velocity (solve_blocks)
   s.joint_rows_needed = false;
@@ -568,10 +568,18 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
 template <class L>
 void StepEngine<L>::build_joint_block(Scratch& s) const {
   if (s.joint_block) return;
-  const int mj = static_cast<int>(row_specs_.size());
   joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, s.rows);
-  if (s.contacts.slots > 0) contact_joint_delassus<L>(km_, factors(s), row_specs_, s.rows.sigma, mj, s.contacts, s.rows.rows);
+  build_coupling(s);
   s.joint_block = true;
+}
+
+// D's coupling of the joint rows with the contact rows.
+template <class L>
+void StepEngine<L>::build_coupling(Scratch& s) const {
+  if (s.coupling) return;
+  const int mj = static_cast<int>(row_specs_.size());
+  if (s.contacts.slots > 0) contact_joint_delassus<L>(km_, factors(s), row_specs_, s.rows.sigma, mj, s.contacts, s.rows.rows);
+  s.coupling = true;
 }
 
 // s.u1 (and TGS's displacement) from the solved impulses, and the joint
@@ -731,21 +739,28 @@ void StepEngine<L>::solve_round(Scratch* const* s, int count, T h) const {
       s[i]->held_displacement[r] = L(T(0));
     }
   }
+  for (int i = 0; i < count; ++i)
+    if (mj > 0) build_coupling(*s[i]);
   auto after_substep = [&](int i) { check_held_rows(*s[i], h); };
   if (count == 2) tgs_solve_blocks<2>(blocks, iterations, h, after_substep);
   else tgs_solve_blocks<1>(blocks, iterations, h, after_substep);
 }
 
 // After a TGS substep: s.violated gains the lanes where a joint row held at
-// zero left its band, its target following its own displacement.
+// zero left its band, its target following its own displacement. The
+// row's velocity is v_free + D lambda over the round's rows, through D's
+// joint rows (build_coupling; the needed joint rows' block is built with
+// them): no pass over the tree per substep.
 template <class L>
 void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
   const int mj = static_cast<int>(row_specs_.size()), iterations = options_.iterations;
   const RowBlock<L>& rows = s.rows.rows;
+  const RowBlock<L>& sub = s.needed;
   const L substep(h / T(iterations)), inv_substep(T(iterations) / h);
-  needed_velocity_change(s);
   for (int r = 0; r < mj; ++r) {
-    const L v = joint_row_velocity<L>(row_specs_, s.rows, r, s.contacts.dv.data());
+    const L* Dr = &rows.D[r * rows.m];
+    L v = rows.v_free[r];
+    for (int a = 0; a < sub.m; ++a) v = lane::fmadd(Dr[s.needed_source[a]], sub.lambda[a], v);
     const L target = rows.positional[r] ? tgs_target(rows, r, s.held_displacement[r], inv_substep) : rows.target[r];
     const L target_hi = rows.positional[r] ? target : rows.target_hi[r];
     s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r],

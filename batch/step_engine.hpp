@@ -110,6 +110,7 @@ class StepEngine final : public Simulator::Engine {
     bool solving = false;      // the block has rows to solve this step
     bool joint_rows_needed = false;  // some lane needs a joint row at the free velocity
     bool joint_block = false;  // D's joint rows block is built (build_joint_block)
+    bool coupling = false;     // D's coupling of joint and contact rows is built (build_coupling)
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
   // A worker steps two blocks at a time (step_blocks).
@@ -142,6 +143,7 @@ class StepEngine final : public Simulator::Engine {
   // (and TGS's displacement) after them.
   void prepare_rows(int block, const T* q, T h, Scratch& s);
   void build_joint_block(Scratch& s) const;
+  void build_coupling(Scratch& s) const;
   void solve_blocks(Scratch* s, int count, T h);
   void build_round(Scratch& s) const;
   void solve_round(Scratch* const* s, int count, T h) const;
