@@ -157,22 +157,32 @@ void ltdl_factor_from_aba(const KernelModel<lane::scalar_t<L>>& km, const Worksp
   }
 }
 
-// Solves L x = z in place on x (nv per lane), with H from ltdl_factor: the
-// last pass of ltdl_solve, root to leaves.
-template <class L>
-void ltdl_lower_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
+// Solves L x = z in place on R right-hand sides x + r stride (nv per lane
+// each), with H from ltdl_factor: the last pass of ltdl_solve, root to
+// leaves. Each factor entry is loaded once for the R of them; each gets the
+// bits of a solve of its own.
+template <int R, class L>
+void ltdl_lower_solve_many(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H,
+                           lane::scalar_t<L>* x, int stride) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
   const int* begin = km.dof_ancestor_begin.data();
   const int* ancestors = km.dof_ancestors.data();
   for (int k = 0; k < nv; ++k) {
-    L xk = lane::load<L>(x + k * W);
+    L xk[R];
+    for (int r = 0; r < R; ++r) xk[r] = lane::load<L>(x + r * stride + k * W);
     for (int t = begin[k]; t < begin[k + 1]; ++t) {
       const int i = ancestors[t];
-      xk = lane::fnmadd(lane::load<L>(H + (k * nv + i) * W), lane::load<L>(x + i * W), xk);
+      const L Lki = lane::load<L>(H + (k * nv + i) * W);
+      for (int r = 0; r < R; ++r) xk[r] = lane::fnmadd(Lki, lane::load<L>(x + r * stride + i * W), xk[r]);
     }
-    lane::store(xk, x + k * W);
+    for (int r = 0; r < R; ++r) lane::store(xk[r], x + r * stride + k * W);
   }
+}
+
+template <class L>
+void ltdl_lower_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
+  ltdl_lower_solve_many<1, L>(km, H, x, 0);
 }
 
 // Solves L^T y = b in place on x (nv per lane), with H from ltdl_factor:
