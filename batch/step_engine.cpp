@@ -739,8 +739,8 @@ void StepEngine<L>::solve_round(Scratch* const* s, int count, T h) const {
       s[i]->held_displacement[r] = L(T(0));
     }
   }
-  for (int i = 0; i < count; ++i)
-    if (mj > 0) build_coupling(*s[i]);
+  if (mj > 0)
+    for (int i = 0; i < count; ++i) build_coupling(*s[i]);
   auto after_substep = [&](int i) { check_held_rows(*s[i], h); };
   if (count == 2) tgs_solve_blocks<2>(blocks, iterations, h, after_substep);
   else tgs_solve_blocks<1>(blocks, iterations, h, after_substep);
