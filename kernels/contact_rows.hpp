@@ -444,16 +444,15 @@ void contact_joint_delassus(const KernelModel<lane::scalar_t<L>>& km, const lane
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = s.nv, k = s.k, m = rows.m, mc = k * s.slots;
-  for (int i = 0; i < mc; ++i) {
-    const int c = i / k;
-    const int* support = &s.support[c * nv];
-    L* X = &s.X[i * nv];
-    for (int j = 0; j < nv; ++j) X[j] = L(T(0));
-    for (int t = 0; t < s.support_size[c]; ++t) X[support[t]] = s.Z[i * nv + support[t]];
-  }
-  // a slot's rows (3, or 4 with torsion) solved together
   const int stride = nv * static_cast<int>(W);
   for (int c = 0; c < s.slots; ++c) {
+    const int* support = &s.support[c * nv];
+    for (int i = c * k; i < (c + 1) * k; ++i) {
+      L* X = &s.X[i * nv];
+      for (int j = 0; j < nv; ++j) X[j] = L(T(0));
+      for (int t = 0; t < s.support_size[c]; ++t) X[support[t]] = s.Z[i * nv + support[t]];
+    }
+    // the slot's rows (3, or 4 with torsion) through L^-1 together
     T* X = reinterpret_cast<T*>(&s.X[c * k * nv]);
     if (k == 3) ltdl_lower_solve_many<3, L>(km, H, X, stride);
     else ltdl_lower_solve_many<4, L>(km, H, X, stride);
