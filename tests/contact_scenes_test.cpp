@@ -116,10 +116,10 @@ FingerResult finger_on_box(SolverType solver, int iterations, Precision precisio
   return r;
 }
 
-// The fewest iterations (of 4, 8, ..., 1024) that hold the finger case,
+// The fewest iterations (of 4, 8, ..., 4096) that hold the finger case,
 // printed for docs/contacts.md.
 int finger_iterations(SolverType solver, Precision precision, FingerResult& last, double wall_sunk) {
-  for (int iterations = 4; iterations <= 1024; iterations *= 2) {
+  for (int iterations = 4; iterations <= 4096; iterations *= 2) {
     last = finger_on_box(solver, iterations, precision, wall_sunk);
     if (last.held) return iterations;
   }
@@ -130,37 +130,49 @@ void expect_finger_held(SolverType solver, Precision precision, double wall_sunk
   FingerResult last;
   const int needed = finger_iterations(solver, precision, last, wall_sunk);
   std::cout << "[finger] " << solver_name(solver) << " " << precision_name(precision) << " wall sunk " << wall_sunk << " m: "
-            << (needed ? std::to_string(needed) + " iterations" : std::string("not held at 1024")) << "\n";
+            << (needed ? std::to_string(needed) + " iterations" : std::string("not held at 4096")) << "\n";
   EXPECT_GT(needed, 0) << solver_name(solver) << " " << precision_name(precision) << ": limit " << last.worst_limit
                        << " rad, penetration " << last.worst_penetration << " m, box " << last.fastest_box << " m/s, "
                        << last.steps_not_pinned << " steps with the box not pinned";
 }
 
-// Measured: PGS holds it in double with 1024 iterations, TGS with 128.
-// Each step's rows have a slow mode (the tip pushing the box into the wall
-// with the distal joint on its limit, which only the drive-heavy proximal
-// joint gives way to: eigenvalue 0.55 against diagonals of 80), of which
-// Gauss-Seidel removes little per sweep; in double the scene settles and
-// the warm start then holds it (docs/contacts.md, "Open problems").
+// Measured: PGS holds it in double with 1024 iterations and in float with
+// 4096, against both walls (the wall's bottom in the ground plane, or sunk
+// 1 cm into it); TGS holds it in double against the coplanar wall with
+// 128. Each step's rows have a slow mode (the tip pushing the box into the
+// wall with the distal joint on its limit, which only the drive-heavy
+// proximal joint gives way to: eigenvalue 0.55 against diagonals of 80),
+// of which Gauss-Seidel removes little per sweep; PGS moves the positions
+// with its last sweep's velocities, so enough sweeps hold the scene
+// (docs/contacts.md, "Open problems").
 TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithPgs) { expect_finger_held(SolverType::PGS, Precision::Double); }
+TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithPgsInFloat) {
+  expect_finger_held(SolverType::PGS, Precision::Float);
+}
+TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstASunkWallWithPgs) {
+  expect_finger_held(SolverType::PGS, Precision::Double, 0.01);
+}
+TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstASunkWallWithPgsInFloat) {
+  expect_finger_held(SolverType::PGS, Precision::Float, 0.01);
+}
 TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithTgs) { expect_finger_held(SolverType::TGS, Precision::Double); }
 
-// Known to fail (docs/contacts.md, "Open problems"): in float neither solver
-// settles by 1024 iterations (PGS: the box keeps moving at 8e-3 m/s; TGS:
-// 4e-2 m/s, the distal joint 0.054 rad past its limit). Run with
-// --gtest_also_run_disabled_tests.
-TEST(ContactScenes, DISABLED_StiffFingerHoldsTheBoxAgainstTheWallInFloat) {
-  expect_finger_held(SolverType::PGS, Precision::Float);
+// Known to fail (docs/contacts.md, "Open problems"): TGS in float against
+// either wall, up to 4096 substeps; against the sunk wall in double, TGS
+// holds it at 4096 substeps but at none of 4 to 2048, nor at 8192. TGS
+// moves the positions by the mean of its substeps' velocities. When the
+// warm start misses (a wall point of the box vanishes, or the box's
+// statically indeterminate loads move between the wall and the ground),
+// the slow mode's error in the first substeps stays in that mean: in
+// double against the coplanar wall the distal joint then passes its limit
+// by about 60 rad / substeps (0.118 rad at 512, 0.056 at 1024, 0.028 at
+// 2048). Run with --gtest_also_run_disabled_tests.
+TEST(ContactScenes, DISABLED_StiffFingerHoldsTheBoxAgainstTheWallWithTgsInFloat) {
   expect_finger_held(SolverType::TGS, Precision::Float);
 }
-
-// Known to fail as well: the double results above rest on the wall's
-// bottom lying in the ground plane with the box's (clipping then adds a
-// fifth wall point near a corner). With the wall sunk 1 cm into the ground,
-// PGS at 1024 iterations leaves the box moving at 2.3e-3 m/s.
-TEST(ContactScenes, DISABLED_StiffFingerHoldsTheBoxAgainstASunkWall) {
-  expect_finger_held(SolverType::PGS, Precision::Double, 0.01);
+TEST(ContactScenes, DISABLED_StiffFingerHoldsTheBoxAgainstASunkWallWithTgs) {
   expect_finger_held(SolverType::TGS, Precision::Double, 0.01);
+  expect_finger_held(SolverType::TGS, Precision::Float, 0.01);
 }
 
 // A quadruped floating over the ground, its joints held in the stance by
