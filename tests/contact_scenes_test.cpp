@@ -136,10 +136,10 @@ void expect_finger_held(SolverType solver, Precision precision, double wall_sunk
                        << last.steps_not_pinned << " steps with the box not pinned";
 }
 
-// Measured: PGS holds it in double with 1024 iterations and in float with
-// 4096, against both walls (the wall's bottom in the ground plane, or sunk
-// 1 cm into it); TGS holds it in double against the coplanar wall with
-// 128. Each step's rows have a slow mode (the tip pushing the box into the
+// Measured: PGS holds it with 1024 iterations in double against the wall
+// whose bottom lies in the ground plane, and with 4096 in float and against
+// the wall sunk 1 cm into the ground (double and float); TGS holds it in
+// double against the coplanar wall with 128. Each step's rows have a slow mode (the tip pushing the box into the
 // wall with the distal joint on its limit, which only the drive-heavy
 // proximal joint gives way to: eigenvalue 0.55 against diagonals of 80),
 // of which Gauss-Seidel removes little per sweep; PGS moves the positions
