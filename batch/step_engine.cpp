@@ -35,7 +35,8 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv), needed(joint_rows + contact.capacity * contact.rows_per_contact),
       needed_source(needed.m), need(joint_rows), violated(joint_rows), joint_impulse(joint_rows),
-      held_displacement(joint_rows), momentum_target(km.nbody), articulation_mass(km.nbody) {}
+      held_displacement(joint_rows), held_coupling(static_cast<std::size_t>(columns) * needed.m),
+      dof_velocity(columns), momentum_target(km.nbody), articulation_mass(km.nbody) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -553,7 +554,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
   if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
-  s.joint_block = s.coupling = false;  // built by the first round that needs them
+  s.joint_block = s.contact_columns = s.coupling = false;  // built by the first round that needs them
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
   // the joint rows a lane needs at the free velocity (solve_blocks)
   s.joint_rows_needed = false;
@@ -573,13 +574,45 @@ void StepEngine<L>::build_joint_block(Scratch& s) const {
   s.joint_block = true;
 }
 
+// The contact rows' columns Mt^-1 J^T (contact_columns).
+template <class L>
+void StepEngine<L>::build_contact_columns(Scratch& s) const {
+  if (s.contact_columns) return;
+  if (s.contacts.slots > 0) contact_columns<L>(km_, factors(s), s.contacts);
+  s.contact_columns = true;
+}
+
 // D's coupling of the joint rows with the contact rows.
 template <class L>
 void StepEngine<L>::build_coupling(Scratch& s) const {
   if (s.coupling) return;
+  build_contact_columns(s);
   const int mj = static_cast<int>(row_specs_.size());
-  if (s.contacts.slots > 0) contact_joint_delassus<L>(km_, factors(s), row_specs_, s.rows.sigma, mj, s.contacts, s.rows.rows);
+  if (s.contacts.slots > 0) contact_joint_delassus<L>(row_specs_, s.rows.sigma, mj, s.contacts, s.rows.rows);
   s.coupling = true;
+}
+
+// For check_held_rows, the round's coupling of every distinct joint-row DOF
+// d with its rows a: C_da = (Mt^-1 J_a^T)[d], so that d's velocity is
+// u_free[d] + sum_a C_da lambda_a; a joint row r on d has the velocity
+// sigma_r times that. D's joint row r is sigma_r C_r. (sigma_r = +-1:
+// the product is exact, and so is the sum's sign, so v_r has the bits of
+// v_free_r + sum_a D_ra lambda_a.)
+template <class L>
+void StepEngine<L>::build_held_coupling(Scratch& s) const {
+  const RowBlock<L>& sub = s.needed;
+  const int nv = km_.nv, n = sub.m, nj = s.needed_joint_rows;
+  build_contact_columns(s);
+  const JointRowScratch<L>& rs = s.rows;
+  for (std::size_t d = 0; d < column_dof_.size(); ++d) {
+    const int dof = column_dof_[d];
+    L* C = &s.held_coupling[d * n];
+    for (int a = 0; a < nj; ++a) {
+      const int r = s.needed_source[a];
+      C[a] = rs.sigma[r] * rs.columns[row_specs_[r].column * nv + dof];
+    }
+    for (int a = nj; a < n; ++a) C[a] = s.contacts.X[(a - nj) * nv + dof];
+  }
 }
 
 // s.u1 (and TGS's displacement) from the solved impulses, and the joint
@@ -740,7 +773,7 @@ void StepEngine<L>::solve_round(Scratch* const* s, int count, T h) const {
     }
   }
   if (mj > 0)
-    for (int i = 0; i < count; ++i) build_coupling(*s[i]);
+    for (int i = 0; i < count; ++i) build_held_coupling(*s[i]);
   auto after_substep = [&](int i) { check_held_rows(*s[i], h); };
   if (count == 2) tgs_solve_blocks<2>(blocks, iterations, h, after_substep);
   else tgs_solve_blocks<1>(blocks, iterations, h, after_substep);
@@ -748,19 +781,24 @@ void StepEngine<L>::solve_round(Scratch* const* s, int count, T h) const {
 
 // After a TGS substep: s.violated gains the lanes where a joint row held at
 // zero left its band, its target following its own displacement. The
-// row's velocity is v_free + D lambda over the round's rows, through D's
-// joint rows (build_coupling; the needed joint rows' block is built with
-// them): no pass over the tree per substep.
+// row's velocity is v_free + D lambda over the round's rows, read as
+// sigma_r times its DOF's velocity (build_held_coupling): one sum per
+// distinct DOF, no pass over the tree per substep.
 template <class L>
 void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
   const int mj = static_cast<int>(row_specs_.size()), iterations = options_.iterations;
   const RowBlock<L>& rows = s.rows.rows;
   const RowBlock<L>& sub = s.needed;
+  const int n = sub.m;
+  for (std::size_t d = 0; d < column_dof_.size(); ++d) {
+    const L* C = &s.held_coupling[d * n];
+    L w = s.u_free[column_dof_[d]];
+    for (int a = 0; a < n; ++a) w = lane::fmadd(C[a], sub.lambda[a], w);
+    s.dof_velocity[d] = w;
+  }
   const L substep(h / T(iterations)), inv_substep(T(iterations) / h);
   for (int r = 0; r < mj; ++r) {
-    const L* Dr = &rows.D[r * rows.m];
-    L v = rows.v_free[r];
-    for (int a = 0; a < sub.m; ++a) v = lane::fmadd(Dr[s.needed_source[a]], sub.lambda[a], v);
+    const L v = s.rows.sigma[r] * s.dof_velocity[row_specs_[r].column];
     const L target = rows.positional[r] ? tgs_target(rows, r, s.held_displacement[r], inv_substep) : rows.target[r];
     const L target_hi = rows.positional[r] ? target : rows.target_hi[r];
     s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r],

@@ -101,6 +101,11 @@ class StepEngine final : public Simulator::Engine {
     int needed_joint_rows = 0;  // the joint rows in `needed`, before its contact rows
     std::vector<lane::mask_t<L>> need, violated;
     std::vector<L> joint_impulse, held_displacement;
+    // TGS's check of the held joint rows (check_held_rows): per distinct
+    // row DOF, its velocity's coefficient of each row of the round, and
+    // that velocity at a substep
+    std::vector<L> held_coupling;  // (columns x needed rows)
+    std::vector<L> dof_velocity;   // (columns)
     // keep_linear_momentum's, per floating root body: the momentum the step
     // must leave, and the articulation's mass
     std::vector<Vec3<L>> momentum_target;  // (nbody)
@@ -110,6 +115,7 @@ class StepEngine final : public Simulator::Engine {
     bool solving = false;      // the block has rows to solve this step
     bool joint_rows_needed = false;  // some lane needs a joint row at the free velocity
     bool joint_block = false;  // D's joint rows block is built (build_joint_block)
+    bool contact_columns = false;  // the contact rows' Mt^-1 J^T are built (build_contact_columns)
     bool coupling = false;     // D's coupling of joint and contact rows is built (build_coupling)
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
@@ -143,7 +149,9 @@ class StepEngine final : public Simulator::Engine {
   // (and TGS's displacement) after them.
   void prepare_rows(int block, const T* q, T h, Scratch& s);
   void build_joint_block(Scratch& s) const;
+  void build_contact_columns(Scratch& s) const;
   void build_coupling(Scratch& s) const;
+  void build_held_coupling(Scratch& s) const;
   void solve_blocks(Scratch* s, int count, T h);
   void build_round(Scratch& s) const;
   void solve_round(Scratch* const* s, int count, T h) const;

@@ -265,8 +265,12 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
         Vec3<L>& n = s.normal[slot];
         n = {lane::select(here, point.normal.x, n.x), lane::select(here, point.normal.y, n.y),
              lane::select(here, point.normal.z, n.z)};
+        // a lane's slot holds one point per step and starts the step empty,
+        // so its J is zero outside the DOFs of that point's pair
         L* J = &s.J[slot * k * nv];
-        for (int i = 0; i < k * nv; ++i) J[i] = lane::select(here, s.candidate_J[i], J[i]);
+        const L* candidate_J = s.candidate_J.data();
+        for (int i = 0; i < k; ++i)
+          for (int j : pair.dofs) J[i * nv + j] = lane::select(here, candidate_J[i * nv + j], J[i * nv + j]);
       }
       s.count = s.count + lane::select(active, one, zero);
     }
@@ -395,8 +399,10 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
   for (int c = 0; c < s.slots; ++c) {
     int* support = &s.support[c * nv];
     int n = 0;
-    for (int j = 0; j < nv; ++j)
-      if (s.moves[c * nv + j]) support[n++] = j;
+    for (int j = 0; j < nv; ++j) {  // compacted without a branch per DOF
+      support[n] = j;
+      n += s.moves[c * nv + j];
+    }
     s.support_size[c] = n;
     for (int i = c * k; i < (c + 1) * k; ++i)
       for (int t = 0; t < n; ++t) s.Y[i * nv + support[t]] = s.J[i * nv + support[t]];
@@ -410,12 +416,16 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
   }
   for (int c1 = 0; c1 < s.slots; ++c1)
     for (int c2 = c1; c2 < s.slots; ++c2) {
-      const int* s1 = &s.support[c1 * nv];
+      // the DOFs of c2's support that c1's moves too, compacted without a
+      // branch per DOF (which of them are shared differs from pair to pair)
       const int* s2 = &s.support[c2 * nv];
-      const int* common = s.common.data();
-      const int shared = static_cast<int>(
-          std::set_intersection(s1, s1 + s.support_size[c1], s2, s2 + s.support_size[c2], s.common.begin()) -
-          s.common.begin());
+      const unsigned char* in_c1 = &s.moves[c1 * nv];
+      int* common = s.common.data();
+      int shared = 0;
+      for (int t = 0; t < s.support_size[c2]; ++t) {
+        common[shared] = s2[t];
+        shared += in_c1[s2[t]];
+      }
       if (k == 3) slot_pair_delassus<3>(s, c1, c2, common, shared, first, rows);
       else slot_pair_delassus<4>(s, c1, c2, common, shared, first, rows);
     }
@@ -434,16 +444,14 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
   }
 }
 
-// The coupling of the contact rows with the joint rows [0, first) (J_r =
-// sigma_r e_dof): D_ri = sigma_r X_i[dof_r], X_i = Mt^-1 J_i^T = L^-1 Z_i.
-// Needs contact_delassus.
+// X_i = Mt^-1 J_i^T = L^-1 Z_i of every contact row, dense over the DOFs:
+// row i's impulse changes DOF j's velocity by X_i[j] lambda_i. Needs
+// contact_delassus.
 template <class L>
-void contact_joint_delassus(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H,
-                            const std::vector<JointRowSpec<lane::scalar_t<L>>>& joint_specs, const std::vector<L>& sigma,
-                            int first, ContactScratch<L>& s, RowBlock<L>& rows) {
+void contact_columns(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, ContactScratch<L>& s) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
-  const int nv = s.nv, k = s.k, m = rows.m, mc = k * s.slots;
+  const int nv = s.nv, k = s.k;
   const int stride = nv * static_cast<int>(W);
   for (int c = 0; c < s.slots; ++c) {
     const int* support = &s.support[c * nv];
@@ -457,6 +465,14 @@ void contact_joint_delassus(const KernelModel<lane::scalar_t<L>>& km, const lane
     if (k == 3) ltdl_lower_solve_many<3, L>(km, H, X, stride);
     else ltdl_lower_solve_many<4, L>(km, H, X, stride);
   }
+}
+
+// The coupling of the contact rows with the joint rows [0, first) (J_r =
+// sigma_r e_dof): D_ri = sigma_r X_i[dof_r]. Needs contact_columns.
+template <class L>
+void contact_joint_delassus(const std::vector<JointRowSpec<lane::scalar_t<L>>>& joint_specs, const std::vector<L>& sigma,
+                            int first, const ContactScratch<L>& s, RowBlock<L>& rows) {
+  const int nv = s.nv, m = rows.m, mc = s.k * s.slots;
   for (int r = 0; r < first; ++r)
     for (int i = 0; i < mc; ++i)
       rows.D[r * m + first + i] = rows.D[(first + i) * m + r] = sigma[r] * s.X[i * nv + joint_specs[r].dof];
