@@ -527,13 +527,24 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   rows.m = mj + mc;
   const T erp = static_cast<T>(options_.error_reduction);
   const T* friction = batch_.joint_friction.block(block);
-  lane::mask_t<L> rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), friction, h, erp);
+  const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
+  // Without contacts the joint rows are tested before they are built (a
+  // block at rest builds none); with them, built and tested once, each
+  // row's slack at the free velocity kept in s.need until `rest` is known.
+  lane::mask_t<L> rest(true);
+  if (mc == 0) rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), friction, h, erp);
+  if (mc > 0 || !lane::all<L>(rest)) {
+    build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
+    for (int r = 0; r < mj; ++r) {
+      s.need[r] = row_slack(rows, r, rows.v_free[r]);
+      rest = rest && s.need[r];
+    }
+  }
   if (mc > 0) {
     build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), h, mj, contacts, rows);
     rest = rest && contact_rows_at_rest<L>(rows, mj, contacts);
   }
   s.rows_at_rest = rest;
-  const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
   if (lane::all<L>(rest)) {
     T* impulse = batch_.impulse.block(block);
     for (int r = 0; r < mj; ++r) lane::store(zero, impulse + r * W);
@@ -542,7 +553,6 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
     return;
   }
   s.solving = true;
-  build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
   const T* impulse = batch_.impulse.block(block);
   for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
   for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
@@ -559,7 +569,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   // the joint rows a lane needs at the free velocity (solve_blocks)
   s.joint_rows_needed = false;
   for (int r = 0; r < mj; ++r) {
-    s.need[r] = !rest && !row_slack(rows, r, rows.v_free[r]);
+    s.need[r] = !rest && !s.need[r];  // s.need held the row's slack
     s.joint_rows_needed = s.joint_rows_needed || lane::any<L>(s.need[r]);
   }
 }
