@@ -512,7 +512,10 @@ void add_contact_impulses(const KernelModel<lane::scalar_t<L>>& km, const lane::
 }
 
 // The slots, their impulses x (rows [first, ...); zero where `rest`) and
-// the counts into the copies' arrays.
+// the counts into the copies' arrays. A slot whose id is -1 is empty, its
+// other entries unspecified (nothing reads them): a slot no lane used this
+// step is written empty only where some lane's id is not -1 yet, so that a
+// copy's unused slots do not stream through memory every step.
 template <class L>
 void store_contacts(const ContactScratch<L>& s, const L* x, const lane::mask_t<L>& rest,
                     const ContactArrays<lane::scalar_t<L>>& arrays) {
@@ -522,6 +525,7 @@ void store_contacts(const ContactScratch<L>& s, const L* x, const lane::mask_t<L
   const L zero(T(0)), none(T(-1)), capacity(static_cast<T>(s.capacity));
   for (int c = 0; c < s.capacity; ++c) {
     const bool used = c < s.slots;
+    if (!used && lane::all<L>(lane::load<L>(arrays.id + c * W) < zero)) continue;
     const auto active = used ? s.count > L(static_cast<T>(c)) : lane::mask_t<L>(false);
     lane::store(used ? lane::select(active, s.id[c], none) : none, arrays.id + c * W);
     for (int i = 0; i < k; ++i)
