@@ -69,11 +69,13 @@ struct ContactScratch {
   std::vector<int> support;          // (capacity x nv) those DOFs, ascending (closed under dof_parent)
   std::vector<int> support_size;     // (capacity)
   std::vector<int> common;           // (nv) DOFs two slots share
-  std::vector<L> J;     // (capacity x k x nv) rows: normal, t1, t2[, torsion]
-  // With Mt = L^T Dg L (ltdl_factor): Y = L^-T J^T and Z = Dg^-1 Y, on the
-  // slot's support only (other entries are stale); X = Mt^-1 J^T = L^-1 Z,
-  // dense, only where the joint rows' coupling needs it.
-  std::vector<L> Y, Z, X;  // (capacity x k x nv)
+  // (capacity x k x nv) rows: normal, t1, t2[, torsion]. With Mt =
+  // L^T Dg L (ltdl_factor), contact_delassus turns J into Y = L^-T J^T in
+  // place (nothing reads J after the rows' free velocities) and sets
+  // Z = Dg^-1 Y, both on the slot's support only (Z's other entries are
+  // stale); X = Mt^-1 J^T = L^-1 Z, dense, only where the joint rows'
+  // coupling needs it.
+  std::vector<L> J, Z, X;
   std::vector<L> inv_dg;   // (nv) 1 / Dg
   std::vector<L> dv;       // (nv) Mt^-1 J^T x of some impulses x
   std::vector<L> warm;  // (capacity x k) last step's impulses of the same points
@@ -82,7 +84,7 @@ struct ContactScratch {
       : capacity(capacity_), k(k_), nv(nv_), count(T(0)), candidates(max_candidates), candidate_J(k_ * nv_),
         id(capacity_), separation(capacity_), mu(capacity_), restitution(capacity_), point(capacity_),
         normal(capacity_), moves(capacity_ * nv_), support(capacity_ * nv_), support_size(capacity_), common(nv_),
-        J(capacity_ * k_ * nv_), Y(J.size()), Z(J.size()), X(J.size()), inv_dg(nv_), dv(nv_), warm(capacity_ * k_) {
+        J(capacity_ * k_ * nv_), Z(J.size()), X(J.size()), inv_dg(nv_), dv(nv_), warm(capacity_ * k_) {
     linear_speed.resize(nbody);
     angular_speed.resize(nbody);
   }
@@ -357,7 +359,7 @@ LOCKSTEP_INLINE void slot_pair_delassus(const ContactScratch<L>& s, int c1, int 
   using T = lane::scalar_t<L>;
   const int nv = s.nv, m = rows.m;
   const L* Z = &s.Z[c1 * K * nv];
-  const L* Y = &s.Y[c2 * K * nv];
+  const L* Y = &s.J[c2 * K * nv];  // Y by now
   L sum[K][K];
   for (int i = 0; i < K; ++i)
     for (int j = 0; j < K; ++j) sum[i][j] = L(T(0));
@@ -404,15 +406,14 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
       n += s.moves[c * nv + j];
     }
     s.support_size[c] = n;
-    for (int i = c * k; i < (c + 1) * k; ++i)
-      for (int t = 0; t < n; ++t) s.Y[i * nv + support[t]] = s.J[i * nv + support[t]];
-    // the slot's rows (3, or 4 with torsion) share their support: solved together
-    T* Y = reinterpret_cast<T*>(&s.Y[c * k * nv]);
+    // the slot's rows (3, or 4 with torsion) share their support: solved
+    // together, J turning into Y
+    T* Y = reinterpret_cast<T*>(&s.J[c * k * nv]);
     const int stride = nv * static_cast<int>(W);
     if (k == 3) ltdl_transpose_solve_many<3, L>(km, H, Y, stride, support, n);
     else ltdl_transpose_solve_many<4, L>(km, H, Y, stride, support, n);
     for (int i = c * k; i < (c + 1) * k; ++i)
-      for (int t = 0; t < n; ++t) s.Z[i * nv + support[t]] = s.Y[i * nv + support[t]] * s.inv_dg[support[t]];
+      for (int t = 0; t < n; ++t) s.Z[i * nv + support[t]] = s.J[i * nv + support[t]] * s.inv_dg[support[t]];
   }
   for (int c1 = 0; c1 < s.slots; ++c1)
     for (int c2 = c1; c2 < s.slots; ++c2) {
