@@ -67,10 +67,11 @@ struct StepBatch {
   BatchArray<T> applied_drive, applied_passive, applied_friction, applied_limits;
   // Contacts (empty without them): the ground plane n . x = d as (n, d) and
   // its friction; per contact slot the point's candidate number (-1: none,
-  // and the slot's other entries are then unspecified), the solver's impulses (normal, t1, t2[, torsion]; also the next step's
-  // warm start), point, normal and separation at the start of the step; the
-  // contacts kept, those dropped beyond capacity, and the steps that
-  // dropped some since the last reset.
+  // and the slot's other entries are then unspecified), the solver's
+  // impulses (normal, t1, t2[, torsion]; also the next step's warm start),
+  // point, normal and separation at the start of the step; the contacts
+  // kept, those dropped beyond capacity, and the steps that dropped some
+  // since the last reset.
   BatchArray<T> ground, ground_friction;
   BatchArray<T> contact_id, contact_impulse, contact_point, contact_normal, contact_separation;
   BatchArray<T> contact_count, contact_dropped, contact_overflow_steps;

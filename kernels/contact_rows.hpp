@@ -232,7 +232,7 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
       const L apart = L(pair.radius_a + pair.radius_b) + reach;
       if (lane::all<L>(spatial::dot(d, d) > apart * apart)) continue;
     }
-  collide<L>(pair, plane_n, plane_d, A, B, s.candidates.data());
+    collide<L>(pair, plane_n, plane_d, A, B, s.candidates.data());
     const L mu = pair.ground ? L(T(0.5)) * (L(pair.friction) + ground_friction) : L(pair.friction);
     for (int c = 0; c < pair.candidates; ++c) {
       const ContactCandidate<L>& point = s.candidates[c];
