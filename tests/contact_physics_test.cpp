@@ -330,11 +330,7 @@ TEST(ContactLimits, ContactImpulseThatDrivesAJointIntoItsLimitIsStopped) {
   flap.joint.limited = true;
   flap.joint.lower = -1.0;
   flap.joint.upper = 1e-3;
-  Shape tip;
-  tip.type = ShapeType::Sphere;
-  tip.size = Eigen::Vector3d(0.02, 0, 0);
-  tip.pose.translation() = Eigen::Vector3d(0, 0.1, 0);
-  flap.shapes.push_back(tip);
+  flap.shapes.push_back(sphere_at(0.02, Eigen::Vector3d(0, 0.1, 0)));
   hinge.links.push_back(flap);
   builder.add_articulation(hinge);
   builder.add_articulation(free_shape_spec("ball", ShapeType::Sphere, Eigen::Vector3d(0.02, 0, 0), 0.01));

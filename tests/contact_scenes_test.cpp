@@ -37,11 +37,7 @@ ArticulationSpec finger_spec() {
   distal.joint.limited = true;  // the joint limit at 0.5 rad the contact pushes it against
   distal.joint.lower = -0.5;
   distal.joint.upper = 0.5;
-  Shape tip;
-  tip.type = ShapeType::Sphere;
-  tip.size = Eigen::Vector3d(0.01, 0, 0);
-  tip.pose.translation() = Eigen::Vector3d(0, 0.08, 0);
-  distal.shapes.push_back(tip);
+  distal.shapes.push_back(sphere_at(0.01, Eigen::Vector3d(0, 0.08, 0)));
   spec.links.push_back(distal);
   return spec;
 }

@@ -20,6 +20,15 @@ void expect_invalid(F&& f, const std::string& piece) {
   }
 }
 
+// A sphere of radius r centred at `at` on its link.
+inline Shape sphere_at(double r, const Eigen::Vector3d& at) {
+  Shape shape;
+  shape.type = ShapeType::Sphere;
+  shape.size = Eigen::Vector3d(r, 0, 0);
+  shape.pose.translation() = at;
+  return shape;
+}
+
 // A free body of mass m carrying one shape, as an articulation spec.
 inline ArticulationSpec free_shape_spec(const std::string& name, ShapeType type, const Eigen::Vector3d& size,
                                         double mass) {
