@@ -789,6 +789,20 @@ void StepEngine<L>::solve_round(Scratch* const* s, int count, T h) const {
   else tgs_solve_blocks<1>(blocks, iterations, h, after_substep);
 }
 
+// The velocities of the DOFs [d, d + G) that carry joint rows, at the
+// round's impulses: u_free + sum_a C_da lambda_a, each summed over a in
+// order. G of them side by side, so that the core has G independent
+// chains of multiply-adds rather than one.
+template <int G, class L>
+LOCKSTEP_INLINE void held_dof_velocities(const L* coupling, const L* lambda, int n, const L* u_free,
+                                         const int* column_dof, int d, L* out) {
+  L w[G];
+  for (int g = 0; g < G; ++g) w[g] = u_free[column_dof[d + g]];
+  for (int a = 0; a < n; ++a)
+    for (int g = 0; g < G; ++g) w[g] = lane::fmadd(coupling[(d + g) * n + a], lambda[a], w[g]);
+  for (int g = 0; g < G; ++g) out[d + g] = w[g];
+}
+
 // After a TGS substep: s.violated gains the lanes where a joint row held at
 // zero left its band, its target following its own displacement. The
 // row's velocity is v_free + D lambda over the round's rows, read as
@@ -799,21 +813,25 @@ void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
   const int mj = static_cast<int>(row_specs_.size()), iterations = options_.iterations;
   const RowBlock<L>& rows = s.rows.rows;
   const RowBlock<L>& sub = s.needed;
-  const int n = sub.m;
-  for (std::size_t d = 0; d < column_dof_.size(); ++d) {
-    const L* C = &s.held_coupling[d * n];
-    L w = s.u_free[column_dof_[d]];
-    for (int a = 0; a < n; ++a) w = lane::fmadd(C[a], sub.lambda[a], w);
-    s.dof_velocity[d] = w;
-  }
+  const int n = sub.m, columns = static_cast<int>(column_dof_.size());
+  L* velocity = s.dof_velocity.data();
+  int d = 0;
+  for (; d + 4 <= columns; d += 4)
+    held_dof_velocities<4>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), column_dof_.data(), d, velocity);
+  for (; d < columns; ++d)
+    held_dof_velocities<1>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), column_dof_.data(), d, velocity);
+  // the rows' arrays through local pointers: the mask stores below would
+  // otherwise make the compiler reload every vector's data pointer per row
+  const L* sigma = s.rows.sigma.data();
+  L* held_displacement = s.held_displacement.data();
   const L substep(h / T(iterations)), inv_substep(T(iterations) / h);
   for (int r = 0; r < mj; ++r) {
-    const L v = s.rows.sigma[r] * s.dof_velocity[row_specs_[r].column];
-    const L target = rows.positional[r] ? tgs_target(rows, r, s.held_displacement[r], inv_substep) : rows.target[r];
-    const L target_hi = rows.positional[r] ? target : rows.target_hi[r];
-    s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r],
-                                                  rows.positional[r] != 0);
-    s.held_displacement[r] = lane::fmadd(substep, v, s.held_displacement[r]);
+    const L v = sigma[r] * velocity[row_specs_[r].column];
+    const bool positional = rows.positional[r] != 0;
+    const L target = positional ? tgs_target(rows, r, held_displacement[r], inv_substep) : rows.target[r];
+    const L target_hi = positional ? target : rows.target_hi[r];
+    s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r], positional);
+    held_displacement[r] = lane::fmadd(substep, v, held_displacement[r]);
   }
 }
 
