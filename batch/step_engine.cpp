@@ -540,9 +540,14 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
       rest = rest && s.need[r];
     }
   }
+  // the contact rows where a round of them alone solves them, s.needed
+  // (spill_contact_rows moves them behind the joint rows if a round needs
+  // joint rows too)
+  RowBlock<L>& contact_rows = s.needed;
+  contact_rows.m = mc;
   if (mc > 0) {
-    build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), h, mj, contacts, rows);
-    rest = rest && contact_rows_at_rest<L>(rows, mj, contacts);
+    build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), h, 0, contacts, contact_rows);
+    rest = rest && contact_rows_at_rest<L>(contact_rows, 0, contacts);
   }
   s.rows_at_rest = rest;
   if (lane::all<L>(rest)) {
@@ -555,7 +560,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   s.solving = true;
   const T* impulse = batch_.impulse.block(block);
   for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
-  for (int i = 0; i < mc; ++i) rows.lambda[mj + i] = lane::select(rest, zero, warm * contacts.warm[i]);
+  for (int i = 0; i < mc; ++i) contact_rows.lambda[i] = lane::select(rest, zero, warm * contacts.warm[i]);
   // Mt's factors: from the step's one ABA at q (semi-implicit Euler), or,
   // where the trapezoid's second ABA ran at its predicted state, by CRBA
   T* H = factors(s);
@@ -563,8 +568,9 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
     ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
-  if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, mj, contacts, rows);
+  if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, 0, contacts, contact_rows);
   s.joint_block = s.contact_columns = s.coupling = false;  // built by the first round that needs them
+  s.contact_rows_spilled = false;
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
   // the joint rows a lane needs at the free velocity (solve_blocks)
   s.joint_rows_needed = false;
@@ -714,39 +720,71 @@ void StepEngine<L>::solve_blocks(Scratch* s, int count, T h) {
     }
 }
 
+// Row r of `from` as row a of `to`, its bound row shifted by `shift` (a
+// contact friction row names its normal row), and its impulse box and
+// warm start held at zero in the lanes outside `keep`.
+template <class L>
+void copy_row(const RowBlock<L>& from, int r, RowBlock<L>& to, int a, int shift, const lane::mask_t<L>& keep) {
+  using T = lane::scalar_t<L>;
+  const L zero(T(0));
+  to.bound_row[a] = from.bound_row[r] < 0 ? -1 : from.bound_row[r] + shift;
+  to.mu[a] = from.mu[r];
+  to.cone[a] = from.cone[r];
+  to.positional[a] = from.positional[r];
+  to.rate[a] = from.rate[r];
+  to.floor[a] = from.floor[r];
+  to.ceiling[a] = from.ceiling[r];
+  to.error[a] = from.error[r];
+  to.v_free[a] = from.v_free[r];
+  to.target[a] = from.target[r];
+  to.target_hi[a] = from.target_hi[r];
+  to.lo[a] = lane::select(keep, from.lo[r], zero);
+  to.hi[a] = lane::select(keep, from.hi[r], zero);
+  to.lambda[a] = lane::select(keep, from.lambda[r], zero);
+}
+
+// The contact rows, built in s.needed by prepare_rows, moved behind the
+// joint rows in s.rows with their warm start (a round of the contact rows
+// alone has changed their impulses since): before the first round that
+// needs joint rows too.
+template <class L>
+void StepEngine<L>::spill_contact_rows(Scratch& s) const {
+  if (s.contact_rows_spilled) return;
+  RowBlock<L>& rows = s.rows.rows;
+  const RowBlock<L>& contact_rows = s.needed;
+  const int mj = static_cast<int>(row_specs_.size()), m = rows.m, mc = m - mj;
+  const lane::mask_t<L> all(true);
+  const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
+  for (int a = 0; a < mc; ++a) {
+    copy_row(contact_rows, a, rows, mj + a, mj, all);
+    rows.lambda[mj + a] = lane::select(s.rows_at_rest, zero, warm * s.contacts.warm[a]);
+    for (int b = 0; b < mc; ++b) rows.D[(mj + a) * m + mj + b] = contact_rows.D[a * mc + b];
+  }
+  s.contact_rows_spilled = true;
+}
+
 // A round's rows in s.needed: the joint rows some lane needs (held at zero
-// in the others), then the contact rows.
+// in the others), then the contact rows. A round of the contact rows
+// alone solves them where prepare_rows built them.
 template <class L>
 void StepEngine<L>::build_round(Scratch& s) const {
   const RowBlock<L>& rows = s.rows.rows;
   RowBlock<L>& sub = s.needed;
   const int mj = static_cast<int>(row_specs_.size()), m = rows.m;
-  const L zero(T(0));
   int nj = 0;
   for (int r = 0; r < mj; ++r)
     if (lane::any<L>(s.need[r])) s.needed_source[nj++] = r;
-  if (nj > 0) build_joint_block(s);
   s.needed_joint_rows = nj;
   const int n = nj + m - mj;
   for (int a = nj; a < n; ++a) s.needed_source[a] = mj + a - nj;
+  if (nj == 0) return;  // rounds only add joint rows: this is the first, from the warm start
+  build_joint_block(s);
+  spill_contact_rows(s);
   sub.m = n;
+  const lane::mask_t<L> all(true);
   for (int a = 0; a < n; ++a) {
     const int r = s.needed_source[a];
-    const bool joint = a < nj;
-    sub.bound_row[a] = rows.bound_row[r] < 0 ? -1 : rows.bound_row[r] - mj + nj;  // contact friction: its normal
-    sub.mu[a] = rows.mu[r];
-    sub.cone[a] = rows.cone[r];
-    sub.positional[a] = rows.positional[r];
-    sub.rate[a] = rows.rate[r];
-    sub.floor[a] = rows.floor[r];
-    sub.ceiling[a] = rows.ceiling[r];
-    sub.error[a] = rows.error[r];
-    sub.v_free[a] = rows.v_free[r];
-    sub.target[a] = rows.target[r];
-    sub.target_hi[a] = rows.target_hi[r];
-    sub.lo[a] = joint ? lane::select(s.need[r], rows.lo[r], zero) : rows.lo[r];
-    sub.hi[a] = joint ? lane::select(s.need[r], rows.hi[r], zero) : rows.hi[r];
-    sub.lambda[a] = joint ? lane::select(s.need[r], rows.lambda[r], zero) : rows.lambda[r];
+    copy_row(rows, r, sub, a, nj - mj, a < nj ? s.need[r] : all);  // contact friction: its normal
     for (int b = 0; b < n; ++b) sub.D[a * n + b] = rows.D[r * m + s.needed_source[b]];
   }
 }

@@ -84,7 +84,7 @@ class StepEngine final : public Simulator::Engine {
     PhaseClock clock;
     Workspace<L> ws;
     JointTermScratch<L> terms;
-    JointRowScratch<L> rows;  // joint rows first, then contact rows
+    JointRowScratch<L> rows;  // joint rows first, then (spill_contact_rows) contact rows
     ContactScratch<L> contacts;
     std::vector<L> u0, u1, u_free, qacc, displacement;  // (nv)
     lane::mask_t<L> rows_at_rest = lane::mask_t<L>(true);  // lanes where no solver row acts this step
@@ -117,6 +117,7 @@ class StepEngine final : public Simulator::Engine {
     bool joint_block = false;  // D's joint rows block is built (build_joint_block)
     bool contact_columns = false;  // the contact rows' Mt^-1 J^T are built (build_contact_columns)
     bool coupling = false;     // D's coupling of joint and contact rows is built (build_coupling)
+    bool contact_rows_spilled = false;  // the contact rows are in `rows` too (spill_contact_rows)
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
   // A worker steps two blocks at a time (step_blocks).
@@ -153,6 +154,7 @@ class StepEngine final : public Simulator::Engine {
   void build_coupling(Scratch& s) const;
   void build_held_coupling(Scratch& s) const;
   void solve_blocks(Scratch* s, int count, T h);
+  void spill_contact_rows(Scratch& s) const;
   void build_round(Scratch& s) const;
   void solve_round(Scratch* const* s, int count, T h) const;
   void check_held_rows(Scratch& s, T h) const;
