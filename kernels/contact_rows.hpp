@@ -223,16 +223,18 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
       if (lane::all<L>(spatial::dot(d, d) > apart * apart)) continue;
     }
     const Transform<L> B = shape_pose<L>(ws, pair.body_b, pair.pose_b);
-    Transform<L> A = B;
+    Transform<L> pose_a;
+    const Transform<L>* A = &B;  // the ground's narrowphase reads the plane, not A
     if (pair.ground) {
       if (lane::all<L>(spatial::dot(plane_n, B.p) - plane_d - L(pair.radius_b) > reach)) continue;
     } else {
-      A = shape_pose<L>(ws, pair.body_a, pair.pose_a);
-      const Vec3<L> d = spatial::sub(B.p, A.p);
+      pose_a = shape_pose<L>(ws, pair.body_a, pair.pose_a);
+      A = &pose_a;
+      const Vec3<L> d = spatial::sub(B.p, A->p);
       const L apart = L(pair.radius_a + pair.radius_b) + reach;
       if (lane::all<L>(spatial::dot(d, d) > apart * apart)) continue;
     }
-    collide<L>(pair, plane_n, plane_d, A, B, s.candidates.data());
+    collide<L>(pair, plane_n, plane_d, *A, B, s.candidates.data());
     const L mu = pair.ground ? L(T(0.5)) * (L(pair.friction) + ground_friction) : L(pair.friction);
     for (int c = 0; c < pair.candidates; ++c) {
       const ContactCandidate<L>& point = s.candidates[c];
