@@ -546,8 +546,8 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   RowBlock<L>& contact_rows = s.needed;
   contact_rows.m = mc;
   if (mc > 0) {
-    build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), h, 0, contacts, contact_rows);
-    rest = rest && contact_rows_at_rest<L>(contact_rows, 0, contacts);
+    build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), h, contacts, contact_rows);
+    rest = rest && contact_rows_at_rest<L>(contact_rows, contacts);
   }
   s.rows_at_rest = rest;
   if (lane::all<L>(rest)) {
@@ -560,7 +560,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   s.solving = true;
   const T* impulse = batch_.impulse.block(block);
   for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
-  for (int i = 0; i < mc; ++i) contact_rows.lambda[i] = lane::select(rest, zero, warm * contacts.warm[i]);
+  for (int i = 0; i < mc; ++i) contact_rows.lambda[i] = contact_warm_start(s, i);
   // Mt's factors: from the step's one ABA at q (semi-implicit Euler), or,
   // where the trapezoid's second ABA ran at its predicted state, by CRBA
   T* H = factors(s);
@@ -568,7 +568,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
     ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
-  if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, 0, contacts, contact_rows);
+  if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, contacts, contact_rows);
   s.joint_block = s.contact_columns = s.coupling = false;  // built by the first round that needs them
   s.contact_rows_spilled = false;
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
@@ -743,6 +743,13 @@ void copy_row(const RowBlock<L>& from, int r, RowBlock<L>& to, int a, int shift,
   to.lambda[a] = lane::select(keep, from.lambda[r], zero);
 }
 
+// Contact row i's warm start: last step's impulse of its point, zero in
+// lanes where no row acts.
+template <class L>
+L StepEngine<L>::contact_warm_start(const Scratch& s, int i) const {
+  return lane::select(s.rows_at_rest, L(T(0)), L(static_cast<T>(options_.warm_start)) * s.contacts.warm[i]);
+}
+
 // The contact rows, built in s.needed by prepare_rows, moved behind the
 // joint rows in s.rows with their warm start (a round of the contact rows
 // alone has changed their impulses since): before the first round that
@@ -754,10 +761,9 @@ void StepEngine<L>::spill_contact_rows(Scratch& s) const {
   const RowBlock<L>& contact_rows = s.needed;
   const int mj = static_cast<int>(row_specs_.size()), m = rows.m, mc = m - mj;
   const lane::mask_t<L> all(true);
-  const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
   for (int a = 0; a < mc; ++a) {
     copy_row(contact_rows, a, rows, mj + a, mj, all);
-    rows.lambda[mj + a] = lane::select(s.rows_at_rest, zero, warm * s.contacts.warm[a]);
+    rows.lambda[mj + a] = contact_warm_start(s, a);
     for (int b = 0; b < mc; ++b) rows.D[(mj + a) * m + mj + b] = contact_rows.D[a * mc + b];
   }
   s.contact_rows_spilled = true;
@@ -858,8 +864,9 @@ void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
     held_dof_velocities<4>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), column_dof_.data(), d, velocity);
   for (; d < columns; ++d)
     held_dof_velocities<1>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), column_dof_.data(), d, velocity);
-  // the rows' arrays through local pointers: the mask stores below would
-  // otherwise make the compiler reload every vector's data pointer per row
+  // sigma and the displacements through local pointers, their data
+  // pointers loaded once rather than per row (the mask store below may
+  // alias them)
   const L* sigma = s.rows.sigma.data();
   L* held_displacement = s.held_displacement.data();
   const L substep(h / T(iterations)), inv_substep(T(iterations) / h);

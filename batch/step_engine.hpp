@@ -93,9 +93,11 @@ class StepEngine final : public Simulator::Engine {
     std::vector<L> q_stage, v_stage;  // RK4 stage state
     std::vector<L> v_sum, a_sum;      // RK4 weighted sums
     // solve_blocks's: the rows a round solves (the joint rows some lane
-    // needs, then the contact rows), each one's row in `rows`, and per
-    // joint row the lanes that need it, those where it left its band held
-    // at zero, its impulse and (TGS) its displacement held at zero
+    // needs, then the contact rows, which prepare_rows builds here), each
+    // one's row in `rows` (the contact rows' once spill_contact_rows has
+    // put them there), and per joint row the lanes that need it, those
+    // where it left its band held at zero, its impulse and (TGS) its
+    // displacement held at zero
     RowBlock<L> needed;
     std::vector<int> needed_source;
     int needed_joint_rows = 0;  // the joint rows in `needed`, before its contact rows
@@ -154,6 +156,7 @@ class StepEngine final : public Simulator::Engine {
   void build_coupling(Scratch& s) const;
   void build_held_coupling(Scratch& s) const;
   void solve_blocks(Scratch* s, int count, T h);
+  L contact_warm_start(const Scratch& s, int i) const;
   void spill_contact_rows(Scratch& s) const;
   void build_round(Scratch& s) const;
   void solve_round(Scratch* const* s, int count, T h) const;

@@ -281,12 +281,12 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
   }
 }
 
-// The slots' rows into rows [first, first + k slots) of the block, from the
-// free velocity u (nv), and each slot's warm start: last step's impulses of
+// The slots' rows into rows [0, k slots) of `rows` (the solver's block of
+// contact rows), from the free velocity u (nv), and each slot's warm start: last step's impulses of
 // the point with the same candidate number. h is the (sub)step.
 template <class L>
 void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const ContactArrays<lane::scalar_t<L>>& arrays,
-                        const L* u, lane::scalar_t<L> h, int first, ContactScratch<L>& s, RowBlock<L>& rows) {
+                        const L* u, lane::scalar_t<L> h, ContactScratch<L>& s, RowBlock<L>& rows) {
   using T = lane::scalar_t<L>;
   using contact_detail::dot_n;
   constexpr std::size_t W = lane::width_v<L>;
@@ -299,7 +299,7 @@ void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const Contact
   for (int c = 0; c < s.slots; ++c) {
     const auto active = s.count > L(static_cast<T>(c));
     const L* J = &s.J[c * k * nv];
-    const int r = first + c * k;
+    const int r = c * k;
     const L vn = dot_n(J, u, nv);
     const L e = lane::select(active, s.separation[c], zero);
     // an impact faster than the bounce threshold, reached within the step,
@@ -341,10 +341,10 @@ void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const Contact
 // Per lane: true where no contact row needs an impulse (the normal rows
 // decide; friction and torsion lean on them).
 template <class L>
-lane::mask_t<L> contact_rows_at_rest(const RowBlock<L>& rows, int first, const ContactScratch<L>& s) {
+lane::mask_t<L> contact_rows_at_rest(const RowBlock<L>& rows, const ContactScratch<L>& s) {
   lane::mask_t<L> rest(true);
   for (int c = 0; c < s.slots; ++c) {
-    const int r = first + c * s.k;
+    const int r = c * s.k;
     rest = rest && row_at_rest(rows.v_free[r], rows.target[r], rows.target_hi[r], rows.lo[r], rows.hi[r],
                                rows.error[r], true);
   }
@@ -357,7 +357,7 @@ lane::mask_t<L> contact_rows_at_rest(const RowBlock<L>& rows, int first, const C
 // DOF's index loaded once; within one slot only j >= i, mirrored.
 template <int K, class L>
 LOCKSTEP_INLINE void slot_pair_delassus(const ContactScratch<L>& s, int c1, int c2, const int* common, int shared,
-                                        int first, RowBlock<L>& rows) {
+                                        RowBlock<L>& rows) {
   using T = lane::scalar_t<L>;
   const int nv = s.nv, m = rows.m;
   const L* Z = &s.Z[c1 * K * nv];
@@ -377,14 +377,14 @@ LOCKSTEP_INLINE void slot_pair_delassus(const ContactScratch<L>& s, int c1, int 
   }
   for (int i = 0; i < K; ++i)
     for (int j = c1 == c2 ? i : 0; j < K; ++j) {
-      const int a = first + c1 * K + i, b = first + c2 * K + j;
+      const int a = c1 * K + i, b = c2 * K + j;
       rows.D[a * m + b] = rows.D[b * m + a] = sum[i][j];
     }
 }
 
-// The contact rows' block of D = J Mt^-1 J^T, with Mt factored in H as
-// L^T Dg L (factor_step_mass_matrix): Y = L^-T J^T and Z = Dg^-1 Y per row,
-// D_ij = Z_i . Y_j. A row's J is zero outside the DOFs that move its
+// D = J Mt^-1 J^T of the contact rows, into `rows` (their own block), with
+// Mt factored in H as L^T Dg L (factor_step_mass_matrix): Y = L^-T J^T and
+// Z = Dg^-1 Y per row, D_ij = Z_i . Y_j. A row's J is zero outside the DOFs that move its
 // slot's bodies, and so is its Y (the L^-T pass only carries entries to
 // ancestors), so each product runs over the DOFs two slots share: a foot's
 // rows reach 9 of anymal_b's 18 DOFs, two feet share the base's 6. A
@@ -394,8 +394,7 @@ LOCKSTEP_INLINE void slot_pair_delassus(const ContactScratch<L>& s, int c1, int 
 // contact_joint_delassus's.
 template <class L>
 void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactParams<lane::scalar_t<L>>& p,
-                      const lane::scalar_t<L>* H, lane::scalar_t<L> h, int first, ContactScratch<L>& s,
-                      RowBlock<L>& rows) {
+                      const lane::scalar_t<L>* H, lane::scalar_t<L> h, ContactScratch<L>& s, RowBlock<L>& rows) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = s.nv, k = s.k, m = rows.m;
@@ -429,8 +428,8 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
         common[shared] = s2[t];
         shared += in_c1[s2[t]];
       }
-      if (k == 3) slot_pair_delassus<3>(s, c1, c2, common, shared, first, rows);
-      else slot_pair_delassus<4>(s, c1, c2, common, shared, first, rows);
+      if (k == 3) slot_pair_delassus<3>(s, c1, c2, common, shared, rows);
+      else slot_pair_delassus<4>(s, c1, c2, common, shared, rows);
     }
   const L compliance(p.stiffness > 0 ? T(1) / (h * (p.stiffness * h + p.damping)) : T(0));
   const L zero(T(0)), one(T(1));
@@ -438,7 +437,7 @@ void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactPar
     const auto active = s.count > L(static_cast<T>(c));
     // a row the bodies cannot move along (J = 0: a fixed-base link's point
     // moving only in the plane of the normal) takes no impulse
-    const int r = first + c * k;
+    const int r = c * k;
     rows.hi[r] = lane::select(rows.D[r * m + r] > zero, rows.hi[r], zero);
     for (int i = 0; i < k; ++i) {
       L& d = rows.D[(r + i) * m + r + i];
@@ -514,7 +513,7 @@ void add_contact_impulses(const KernelModel<lane::scalar_t<L>>& km, const lane::
   for (int j = 0; j < s.nv; ++j) out[j] = out[j] + s.dv[j];
 }
 
-// The slots, their impulses x (rows [first, ...); zero where `rest`) and
+// The slots, their impulses x (k per slot; zero where `rest`) and
 // the counts into the copies' arrays. A slot whose id is -1 is empty, its
 // other entries unspecified (nothing reads them): a slot no lane used this
 // step is written empty only where some lane's id is not -1 yet, so that a
