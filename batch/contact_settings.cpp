@@ -1,5 +1,6 @@
 #include "batch/contact_settings.hpp"
 
+#include "batch/require.hpp"
 #include "layout/model.hpp"
 
 #include <cmath>
@@ -8,10 +9,6 @@
 namespace lockstep {
 
 namespace {
-
-void require(bool ok, const std::string& message) {
-  if (!ok) throw std::invalid_argument(message);
-}
 
 std::string number(double x) { return std::to_string(x); }
 

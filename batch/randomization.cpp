@@ -74,6 +74,7 @@ double draw(const UniformRange& range, std::uint64_t seed, int copy, std::uint32
 
 double draw(const Randomization& r, UniformRange Randomization::*range, std::uint64_t seed, int copy,
             std::uint32_t reset, int k) {
+  if ((r.*range).fixed()) return (r.*range).low;  // no field number needed
   const std::vector<RandomizationField>& fields = randomization_fields();
   for (std::size_t f = 0; f < fields.size(); ++f)
     if (fields[f].range == range) return draw(r.*range, seed, copy, reset, static_cast<int>(f), k);

@@ -1,9 +1,8 @@
 #include "batch/simulator.hpp"
 
 #include "batch/batch_dynamics.hpp"
+#include "batch/require.hpp"
 #include "batch/step_engine.hpp"
-
-#include <Eigen/Eigenvalues>
 
 #include <array>
 #include <cmath>
@@ -48,8 +47,19 @@ void clear_warm_start(StepBatch<T>& b, int copy) {
   if (b.contact_id.size() > 0) b.contact_id.set(copy, Eigen::VectorXd::Constant(b.contact_id.size(), -1.0));
 }
 
-void require(bool ok, const std::string& message) {
-  if (!ok) throw std::invalid_argument(message);
+// Symmetric positive semidefinite, round-off aside: asymmetry and the
+// smallest eigenvalue within 1e-12 of the largest diagonal entry (or of 1).
+// The smallest eigenvalue is >= -tolerance exactly when B = I + tolerance 1
+// has no negative principal minor (Sylvester's criterion for semidefinite
+// matrices: all seven minors, not only the three leading ones). Their
+// round-off, about 1e-16 of the entries' scale, is far below the tolerance.
+bool symmetric_positive_semidefinite(const Eigen::Matrix3d& inertia) {
+  const double tolerance = 1e-12 * std::max(1.0, inertia.diagonal().cwiseAbs().maxCoeff());
+  if ((inertia - inertia.transpose()).cwiseAbs().maxCoeff() > tolerance) return false;
+  const Eigen::Matrix3d B = inertia + tolerance * Eigen::Matrix3d::Identity();
+  auto minor2 = [&](int i, int j) { return B(i, i) * B(j, j) - B(i, j) * B(i, j); };
+  return B.diagonal().minCoeff() >= 0 && minor2(0, 1) >= 0 && minor2(0, 2) >= 0 && minor2(1, 2) >= 0 &&
+         B.determinant() >= 0;
 }
 
 void validate(const Model& model, int copies, const StepOptions& o, const std::vector<DofSettings>& dofs) {
@@ -163,7 +173,7 @@ StepProfile Simulator::profile() const { return engine_->profile(); }
 int Simulator::row_count() const { return engine_->rows(); }
 std::size_t Simulator::bytes_per_copy() const { return engine_->bytes_per_copy(); }
 
-void Simulator::make_plan() {
+void Simulator::make_plan() const {
   int drives = 0, damping = 0, springs = 0, soft = 0, stribeck = 0, hard = 0, velocity = 0, coulomb = 0;
   for (int k = 0; k < model_->nv; ++k) {
     const DofSettings& d = dofs_[k];
@@ -227,6 +237,7 @@ std::string Simulator::rows_summary() const {
 }
 
 std::string Simulator::describe_plan() const {
+  refresh_plan();
   std::ostringstream out;
   out << "step: dt " << options_.dt << " s, " << options_.substeps << " substep(s), " << integrator_name(options_.integrator)
       << ", " << solver_name(options_.solver) << " x " << options_.iterations << ", " << precision_name(options_.precision)
@@ -234,7 +245,7 @@ std::string Simulator::describe_plan() const {
   out << "  kinematics and ABA with gravity: always\n";
   for (const StageDecision& d : plan_)
     out << "  " << stage_name(d.stage) << ": " << (d.runs ? "runs" : "skipped") << " (" << d.reason << ")\n";
-  const bool contacts = plan_[static_cast<int>(Stage::Contacts)].runs && !pairs_.pairs.empty();
+  const bool contacts = contacts_run() && !pairs_.pairs.empty();
   const int per_contact = options_.contacts.torsional_friction > 0 ? 4 : 3;
   out << "  solver: ";
   if (row_count() == 0 && !contacts) out << "skipped (no rows)";
@@ -252,12 +263,24 @@ std::string Simulator::describe_plan() const {
   return out.str();
 }
 
-void Simulator::replan() {
+void Simulator::refresh_plan() const {
+  if (!plan_stale_) return;
   make_plan();
   engine_->set_plan(step_plan());
+  plan_stale_ = false;
+}
+
+// The contacts' decision depends on the options and the shape pairs only, so
+// a stale plan holds it too.
+bool Simulator::contacts_run() const { return plan_[static_cast<int>(Stage::Contacts)].runs; }
+
+const std::vector<StageDecision>& Simulator::plan() const {
+  refresh_plan();
+  return plan_;
 }
 
 void Simulator::step(int n) {
+  refresh_plan();
   for (int i = 0; i < n; ++i) {
     engine_->step(options_.substeps, options_.dt);
     time_ += options_.dt;
@@ -306,25 +329,28 @@ Eigen::VectorXd Simulator::v(int copy) const {
 
 // q with every quaternion normalised; throws on a zero or non-finite one.
 Eigen::VectorXd Simulator::checked_configuration(const Eigen::VectorXd& q, const char* what) const {
-  require(q.size() == model_->nq, std::string(what) + ": expected " + std::to_string(model_->nq) + " values, got " +
-                                      std::to_string(q.size()));
+  require(q.size() == model_->nq, [&] {
+    return std::string(what) + ": expected " + std::to_string(model_->nq) + " values, got " + std::to_string(q.size());
+  });
   Eigen::VectorXd out = q;
   for (int i = 0; i < q.size(); ++i)
-    require(std::isfinite(q[i]), std::string(what) + ": entry " + std::to_string(i) + " is not finite");
+    require(std::isfinite(q[i]), [&] { return std::string(what) + ": entry " + std::to_string(i) + " is not finite"; });
   for (int b = 0; b < model_->nbody; ++b) {
     const JointType type = model_->body_joint[b];
     if (type != JointType::Free && type != JointType::Spherical) continue;
     const int at = model_->body_q_offset[b] + (type == JointType::Free ? 3 : 0);
     const double norm = out.segment<4>(at).norm();
-    require(norm > 1e-9, std::string(what) + ": the quaternion of joint " + model_->joint_name[b] + " is zero");
+    require(norm > 1e-9,
+            [&] { return std::string(what) + ": the quaternion of joint " + model_->joint_name[b] + " is zero"; });
     out.segment<4>(at) /= norm;
   }
   return out;
 }
 
 void Simulator::check_velocity(const Eigen::VectorXd& v, const char* what) const {
-  require(v.size() == model_->nv, std::string(what) + ": expected " + std::to_string(model_->nv) + " values, got " +
-                                      std::to_string(v.size()));
+  require(v.size() == model_->nv, [&] {
+    return std::string(what) + ": expected " + std::to_string(model_->nv) + " values, got " + std::to_string(v.size());
+  });
 }
 
 void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
@@ -332,7 +358,7 @@ void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::Vecto
   const Eigen::VectorXd qn = checked_configuration(q, "set_state q");
   check_velocity(v, "set_state v");
   for (int k = 0; k < v.size(); ++k)
-    require(std::isfinite(v[k]), "set_state v: entry " + std::to_string(k) + " is not finite");
+    require(std::isfinite(v[k]), [&] { return "set_state v: entry " + std::to_string(k) + " is not finite"; });
   visit([&](auto& b) {
     b.state.q.set(copy, qn);
     b.state.v.set(copy, v);
@@ -408,7 +434,7 @@ void Simulator::note_copy_inputs(int copy) {
     if (!per_copy_damping_ && nonzero(b.joint_damping)) per_copy_damping_ = changed = true;
     if (!wrenches_used_ && nonzero(b.state.wrench)) wrenches_used_ = changed = true;
   });
-  if (changed) replan();
+  if (changed) invalidate_plan();
 }
 
 void Simulator::set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
@@ -423,8 +449,10 @@ void Simulator::set_torque(int copy, const Eigen::VectorXd& tau) {
 
 void Simulator::set_drive_target(int copy, const Eigen::VectorXd& q_target, const Eigen::VectorXd& v_target) {
   check_copy(copy);
-  require(q_target.size() == model_->nq, "set_drive_target: q_target expects " + std::to_string(model_->nq) +
-                                             " values, got " + std::to_string(q_target.size()));
+  require(q_target.size() == model_->nq, [&] {
+    return "set_drive_target: q_target expects " + std::to_string(model_->nq) + " values, got " +
+           std::to_string(q_target.size());
+  });
   check_velocity(v_target, "set_drive_target v_target");
   visit([&](auto& b) {
     b.target_q.set(copy, q_target);
@@ -437,11 +465,14 @@ void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen
   check_velocity(kp, "set_drive_gains kp");
   check_velocity(kd, "set_drive_gains kd");
   for (int k = 0; k < model_->nv; ++k) {
-    require(std::isfinite(kp[k]) && kp[k] >= 0 && std::isfinite(kd[k]) && kd[k] >= 0,
-            "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] + ") needs finite gains >= 0");
+    require(std::isfinite(kp[k]) && kp[k] >= 0 && std::isfinite(kd[k]) && kd[k] >= 0, [&] {
+      return "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] + ") needs finite gains >= 0";
+    });
     if (model_->body_joint[model_->dof_body[k]] == JointType::Free)
-      require(kp[k] == 0 && kd[k] == 0, "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
-                                            ") belongs to a floating base, which takes no drive");
+      require(kp[k] == 0 && kd[k] == 0, [&] {
+        return "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
+               ") belongs to a floating base, which takes no drive";
+      });
   }
   visit([&](auto& b) {
     b.drive_stiffness.set(copy, kp);
@@ -453,8 +484,10 @@ void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen
 void Simulator::check_per_dof(const Eigen::VectorXd& values, const char* what) const {
   check_velocity(values, what);
   for (int k = 0; k < model_->nv; ++k)
-    require(std::isfinite(values[k]) && values[k] >= 0, std::string(what) + ": DOF " + std::to_string(k) + " (" +
-                                                            model_->dof_name[k] + ") needs a finite value >= 0");
+    require(std::isfinite(values[k]) && values[k] >= 0, [&] {
+      return std::string(what) + ": DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
+             ") needs a finite value >= 0";
+    });
 }
 
 // With conserve_linear_momentum a floating base takes no damping or armature
@@ -462,9 +495,10 @@ void Simulator::check_per_dof(const Eigen::VectorXd& values, const char* what) c
 void Simulator::check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const {
   if (!options_.conserve_linear_momentum) return;
   for (int k = 0; k < model_->nv; ++k)
-    require(values[k] == 0 || model_->body_joint[model_->dof_body[k]] != JointType::Free,
-            std::string(what) + ": DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
-                ") belongs to a floating base, which takes none with conserve_linear_momentum");
+    require(values[k] == 0 || model_->body_joint[model_->dof_body[k]] != JointType::Free, [&] {
+      return std::string(what) + ": DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
+             ") belongs to a floating base, which takes none with conserve_linear_momentum";
+    });
 }
 
 void Simulator::set_joint_damping(int copy, const Eigen::VectorXd& damping) {
@@ -494,15 +528,14 @@ void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::V
   if (body < 0 || body >= model_->nbody)
     throw std::out_of_range("set_body_inertia: body index " + std::to_string(body) + " outside [0, " +
                             std::to_string(model_->nbody) + ")");
-  const std::string where =
-      "set_body_inertia: body " + std::to_string(body) + " (" + model_->frame_name[model_->body_frame[body]] + "): ";
-  require(std::isfinite(mass) && mass >= 0, where + "mass must be finite and >= 0");
-  require(com.allFinite() && inertia.allFinite(), where + "COM and inertia must be finite");
-  // symmetric positive semidefinite, round-off aside (as the URDF importer accepts)
-  const double scale = std::max(1.0, inertia.diagonal().cwiseAbs().maxCoeff());
-  require((inertia - inertia.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * scale &&
-              Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(inertia).eigenvalues().minCoeff() >= -1e-12 * scale,
-          where + "the rotational inertia must be symmetric positive semidefinite");
+  auto where = [&] {
+    return "set_body_inertia: body " + std::to_string(body) + " (" + model_->frame_name[model_->body_frame[body]] +
+           "): ";
+  };
+  require(std::isfinite(mass) && mass >= 0, [&] { return where() + "mass must be finite and >= 0"; });
+  require(com.allFinite() && inertia.allFinite(), [&] { return where() + "COM and inertia must be finite"; });
+  require(symmetric_positive_semidefinite(inertia),
+          [&] { return where() + "the rotational inertia must be symmetric positive semidefinite"; });
   visit([&](auto& b) { b.state.set_body_inertia(copy, body, mass, com, inertia); });
   note_own_inertia(copy, true);
 }
@@ -510,7 +543,7 @@ void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::V
 void Simulator::note_own_inertia(int copy, bool own) {
   if (own_inertia_[copy] == own) return;
   own_inertia_[copy] = own;
-  replan();
+  invalidate_plan();
 }
 
 void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench) {
@@ -524,7 +557,7 @@ void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 
   });
   if (!wrenches_used_) {
     wrenches_used_ = true;
-    replan();
+    invalidate_plan();
   }
 }
 
@@ -573,7 +606,7 @@ AppliedTorque Simulator::applied_torque(int copy) const {
 
 void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction) {
   check_copy(copy);
-  require(options_.contacts.ground && plan_[static_cast<int>(Stage::Contacts)].runs,
+  require(options_.contacts.ground && contacts_run(),
           "set_ground: the scene has no ground (ContactSettings::ground) or its contacts are off");
   require(std::isfinite(height), "set_ground: height must be finite");
   require(normal.allFinite() && normal.norm() > 1e-9, "set_ground: normal must be a finite non-zero vector");
@@ -588,7 +621,7 @@ void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& norma
 template <class F>
 void Simulator::visit_contacts(int copy, F&& f) const {
   check_copy(copy);
-  if (!plan_[static_cast<int>(Stage::Contacts)].runs || pairs_.pairs.empty()) return;
+  if (!contacts_run() || pairs_.pairs.empty()) return;
   const double h = options_.dt / options_.substeps;
   visit([&](auto& b) {
     using T = std::decay_t<decltype(b.contact_id.at(0, 0))>;
@@ -649,7 +682,7 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::body_contact_wrenches(int co
 
 ContactOverflow Simulator::contact_overflow(int copy) const {
   check_copy(copy);
-  if (!plan_[static_cast<int>(Stage::Contacts)].runs || pairs_.pairs.empty()) return {};
+  if (!contacts_run() || pairs_.pairs.empty()) return {};
   return visit([&](auto& b) {
     return ContactOverflow{static_cast<int>(b.contact_dropped.at(copy, 0)),
                            static_cast<int>(b.contact_overflow_steps.at(copy, 0))};

@@ -149,7 +149,7 @@ class Simulator {
   StepProfile profile() const;
 
   // The stages the pipeline runs for this scene, each with the reason.
-  const std::vector<StageDecision>& plan() const { return plan_; }
+  const std::vector<StageDecision>& plan() const;
   std::string describe_plan() const;
   // The constraint rows per copy (limit, velocity-limit and friction rows).
   int row_count() const;
@@ -221,16 +221,21 @@ class Simulator {
   struct Engine;  // the pipeline for one lane type
 
  private:
-  void make_plan();
-  void replan();
+  void make_plan() const;  // plan_ from the options and the per-copy inputs so far
+  // A per-copy input that changes the plan only marks it stale: it is made
+  // again when next read or stepped, so that resetting N copies (each
+  // turning its own inertias on) plans once rather than N times.
+  void invalidate_plan() { plan_stale_ = true; }
+  void refresh_plan() const;  // plan_ and the engine's plan, where stale
+  bool contacts_run() const;
   StepPlan step_plan() const;
   std::string rows_summary() const;
   void check_copy(int copy) const;
   void check_velocity(const Eigen::VectorXd& v, const char* what) const;
   void check_per_dof(const Eigen::VectorXd& values, const char* what) const;  // nv finite values >= 0
   void check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const;
-  // Replans when a copy's drive gains, damping or wrenches need a stage the
-  // plan skips.
+  // Invalidates the plan when a copy's drive gains, damping or wrenches need
+  // a stage the plan skips.
   void note_copy_inputs(int copy);
   void note_own_inertia(int copy, bool own);
   Eigen::VectorXd checked_configuration(const Eigen::VectorXd& q, const char* what) const;
@@ -243,7 +248,8 @@ class Simulator {
   const Model* model_;
   StepOptions options_;
   std::vector<DofSettings> dofs_;
-  std::vector<StageDecision> plan_;
+  mutable std::vector<StageDecision> plan_;
+  mutable bool plan_stale_ = false;
   ContactPairs pairs_;
   double time_ = 0.0;
   bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive

@@ -370,5 +370,56 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
   EXPECT_THROW(sim.batch<double>(), std::logic_error);
 }
 
+// The per-copy setters name what is wrong and leave the copy as it was.
+// A rotational inertia is accepted down to an eigenvalue of -1e-12 of its
+// largest diagonal entry (round-off), including singular ones (a thin rod,
+// a point mass) and ones whose off-diagonal entries outweigh the diagonal.
+TEST(Simulator, BadPerCopyInputsAreRejectedByNameAndChangeNothing) {
+  const Model model = free_box(Eigen::Vector3d(0.1, 0.2, 0.3), 2.0);
+  Simulator sim(model, 2, double_options(0.01));
+  auto expect_error = [](auto&& call, const std::string& piece) {
+    try {
+      call();
+      ADD_FAILURE() << "no error for " << piece;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(piece), std::string::npos) << e.what();
+    }
+  };
+  const Eigen::Vector3d com = model.body_com[0];
+  auto set_inertia = [&](const Eigen::Matrix3d& inertia) { sim.set_body_inertia(1, 0, 2.0, com, inertia); };
+  const Eigen::Matrix3d rotation = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  const Eigen::Matrix3d rod = rotation * Eigen::Vector3d(0, 1, 1).asDiagonal() * rotation.transpose();
+  Eigen::Matrix3d coupled;  // eigenvalues 0, 2 and 1: the off-diagonal entry equals the diagonal
+  coupled << 1, 1, 0, 1, 1, 0, 0, 0, 1;
+  for (const Eigen::Matrix3d& good :
+       {Eigen::Matrix3d(Eigen::Matrix3d::Zero()), rod, coupled,
+        Eigen::Matrix3d(rotation * Eigen::Vector3d(-1e-13, 1, 1).asDiagonal() * rotation.transpose())})
+    EXPECT_NO_THROW(set_inertia(good)) << good;
+  const Eigen::VectorXd parameters = sim.batch<double>().state.inertia.get(1);
+  Eigen::Matrix3d indefinite = coupled;
+  indefinite(0, 1) = indefinite(1, 0) = 1.001;  // eigenvalue -1e-3
+  Eigen::Matrix3d asymmetric = Eigen::Matrix3d::Identity();
+  asymmetric(0, 2) = 1e-3;
+  for (const Eigen::Matrix3d& bad :
+       {indefinite, asymmetric,
+        Eigen::Matrix3d(rotation * Eigen::Vector3d(-1e-9, 1, 1).asDiagonal() * rotation.transpose())})
+    expect_error([&] { set_inertia(bad); },
+                 "set_body_inertia: body 0 (box): the rotational inertia must be symmetric "
+                 "positive semidefinite");
+  expect_error([&] { sim.set_body_inertia(1, 0, -1.0, com, rod); }, "body 0 (box): mass must be finite");
+  EXPECT_EQ(sim.batch<double>().state.inertia.get(1), parameters) << "a rejected inertia was written";
+
+  const Eigen::VectorXd q = sim.q(1);
+  Eigen::VectorXd bad_q = q;
+  bad_q[4] = std::nan("");
+  expect_error([&] { sim.set_state(1, bad_q, Eigen::VectorXd::Zero(6)); }, "set_state q: entry 4 is not finite");
+  expect_error([&] { sim.set_state(1, Eigen::VectorXd::Zero(7), Eigen::VectorXd::Zero(6)); },
+               "set_state q: the quaternion of joint");
+  EXPECT_EQ(sim.q(1), q) << "a rejected state was written";
+  Eigen::VectorXd damping = Eigen::VectorXd::Zero(6);
+  damping[2] = -1.0;
+  expect_error([&] { sim.set_joint_damping(1, damping); }, "set_joint_damping: DOF 2 (");
+}
+
 }  // namespace
 }  // namespace lockstep
