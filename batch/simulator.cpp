@@ -145,6 +145,12 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   validate(model, copies, options_, dofs_);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
+  candidate_pair_.resize(pairs_.candidates);
+  for (std::size_t p = 0; p < pairs_.pairs.size(); ++p) {
+    const auto end = p + 1 < pairs_.pairs.size() ? pairs_.pairs[p + 1].first_candidate : pairs_.candidates;
+    std::fill(candidate_pair_.begin() + pairs_.pairs[p].first_candidate, candidate_pair_.begin() + end,
+              static_cast<int>(p));
+  }
   own_inertia_.assign(copies, false);
   make_plan();
   const StepPlan plan = step_plan();
@@ -153,13 +159,20 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
     throw std::invalid_argument(
         "StepOptions::integrator RK4 integrates scenes without solver rows, and this scene has " + rows_summary() +
         ": use SemiImplicitEuler or Trapezoid, or force those stages off");
+  auto start = [&](auto engine) {  // the engine, and where its batch lives
+    if constexpr (std::is_same_v<std::decay_t<decltype(engine->batch())>, StepBatch<float>>)
+      float_batch_ = &engine->batch();
+    else
+      double_batch_ = &engine->batch();
+    engine_ = std::move(engine);
+  };
   const bool simd = options_.lanes == Lanes::Simd;
   if (options_.precision == Precision::Float) {
-    if (simd) engine_ = std::make_unique<StepEngine<lane::simd<float>>>(model, copies, options_, dofs_, plan, pairs_);
-    else engine_ = std::make_unique<StepEngine<float>>(model, copies, options_, dofs_, plan, pairs_);
+    if (simd) start(std::make_unique<StepEngine<lane::simd<float>>>(model, copies, options_, dofs_, plan, pairs_));
+    else start(std::make_unique<StepEngine<float>>(model, copies, options_, dofs_, plan, pairs_));
   } else {
-    if (simd) engine_ = std::make_unique<StepEngine<lane::simd<double>>>(model, copies, options_, dofs_, plan, pairs_);
-    else engine_ = std::make_unique<StepEngine<double>>(model, copies, options_, dofs_, plan, pairs_);
+    if (simd) start(std::make_unique<StepEngine<lane::simd<double>>>(model, copies, options_, dofs_, plan, pairs_));
+    else start(std::make_unique<StepEngine<double>>(model, copies, options_, dofs_, plan, pairs_));
   }
 }
 
@@ -299,8 +312,10 @@ StepBatch<T>& Simulator::batch() {
 
 template <class T>
 const StepBatch<T>& Simulator::batch() const {
-  if (auto* e = dynamic_cast<const StepEngine<lane::simd<T>>*>(engine_.get())) return e->batch();
-  if (auto* e = dynamic_cast<const StepEngine<T>*>(engine_.get())) return e->batch();
+  const StepBatch<T>* b;
+  if constexpr (std::is_same_v<T, float>) b = float_batch_;
+  else b = double_batch_;
+  if (b) return *b;
   throw std::logic_error(std::string("Simulator::batch<") + (sizeof(T) == 4 ? "float" : "double") +
                          ">: the simulator runs in " + precision_name(options_.precision));
 }
@@ -625,27 +640,27 @@ void Simulator::visit_contacts(int copy, F&& f) const {
   const double h = options_.dt / options_.substeps;
   visit([&](auto& b) {
     using T = std::decay_t<decltype(b.contact_id.at(0, 0))>;
-    const int k = b.contact_impulse.size() / b.contact_id.size();
+    const int W = b.contact_id.width(), k = b.contact_impulse.size() / b.contact_id.size();
+    const T *ids = b.contact_id.lane(copy), *impulses = b.contact_impulse.lane(copy);
+    const T *points = b.contact_point.lane(copy), *normals = b.contact_normal.lane(copy);
+    const T* separations = b.contact_separation.lane(copy);
     for (int c = 0; c < b.contact_id.size(); ++c) {
-      const int id = static_cast<int>(b.contact_id.at(copy, c));
-      if (id < 0) continue;
-      // the pair whose candidates hold id
-      auto it = std::upper_bound(pairs_.pairs.begin(), pairs_.pairs.end(), id,
-                                 [](int x, const ContactPair& p) { return x < p.first_candidate; });
-      const ContactPair& pair = *(it - 1);
+      const int id = static_cast<int>(ids[c * W]);
+      if (id < 0) break;  // a copy's contacts fill its slots from the first
+      const ContactPair& pair = pairs_.pairs[candidate_pair_[id]];
       Contact contact;
       contact.shape_a = pair.a.shape;
       contact.shape_b = pair.b.shape;
       contact.body_a = pair.a.body;
       contact.body_b = pair.b.body;
+      auto field = [&](const T* values, int i) { return values[i * W]; };
       Vec3<T> n, t1, t2;
-      n = {b.contact_normal.at(copy, 3 * c), b.contact_normal.at(copy, 3 * c + 1), b.contact_normal.at(copy, 3 * c + 2)};
+      n = {field(normals, 3 * c), field(normals, 3 * c + 1), field(normals, 3 * c + 2)};
       tangent_frame<T>(n, t1, t2);  // the solver's frame, in its precision
       contact.normal = Eigen::Vector3d(n.x, n.y, n.z);
-      contact.point = Eigen::Vector3d(b.contact_point.at(copy, 3 * c), b.contact_point.at(copy, 3 * c + 1),
-                                      b.contact_point.at(copy, 3 * c + 2));
-      contact.separation = b.contact_separation.at(copy, c);
-      auto impulse = [&](int i) { return static_cast<double>(b.contact_impulse.at(copy, c * k + i)); };
+      contact.point = Eigen::Vector3d(field(points, 3 * c), field(points, 3 * c + 1), field(points, 3 * c + 2));
+      contact.separation = field(separations, c);
+      auto impulse = [&](int i) { return static_cast<double>(field(impulses, c * k + i)); };
       contact.force = (impulse(0) * contact.normal + impulse(1) * Eigen::Vector3d(t1.x, t1.y, t1.z) +
                        impulse(2) * Eigen::Vector3d(t2.x, t2.y, t2.z)) / h;
       contact.torsion = k > 3 ? impulse(3) / h : 0.0;

@@ -67,7 +67,8 @@ struct StepBatch {
   BatchArray<T> applied_drive, applied_passive, applied_friction, applied_limits;
   // Contacts (empty without them): the ground plane n . x = d as (n, d) and
   // its friction; per contact slot the point's candidate number (-1: none,
-  // and the slot's other entries are then unspecified), the solver's
+  // and the slot's other entries are then unspecified; a copy's contacts
+  // fill its slots from the first, so none follows an empty one), the solver's
   // impulses (normal, t1, t2[, torsion]; also the next step's warm start),
   // point, normal and separation at the start of the step; the contacts
   // kept, those dropped beyond capacity, and the steps that dropped some
@@ -251,12 +252,17 @@ class Simulator {
   mutable std::vector<StageDecision> plan_;
   mutable bool plan_stale_ = false;
   ContactPairs pairs_;
+  std::vector<int> candidate_pair_;  // (pairs_.candidates) the pair each contact candidate number belongs to
   double time_ = 0.0;
   bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive
   bool per_copy_damping_ = false;  // set_joint_damping gave some copy damping
   bool wrenches_used_ = false;   // set_link_wrench was called
   std::vector<bool> own_inertia_;  // per copy: set_body_inertia or a restore gave it inertias other than the model's
   std::unique_ptr<Engine> engine_;
+  // The engine's batch, in the precision it runs (the other is null): the
+  // per-copy accessors reach it without a cast.
+  StepBatch<float>* float_batch_ = nullptr;
+  StepBatch<double>* double_batch_ = nullptr;
 };
 
 }  // namespace lockstep
