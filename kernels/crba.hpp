@@ -10,10 +10,11 @@ namespace lockstep {
 
 // Carries the force columns F[0, n) of body b's DOFs (b's coordinates) up
 // the tree: at each ancestor j, entry(i, l, S_i^T ^jX_b^* F_l) for each DOF
-// i of j's joint (RBDA Table 6.2's inner loop).
-template <class L, class Entry>
+// i of j's joint (RBDA Table 6.2's inner loop). N: the columns' room, a
+// compile-time 1 for a one-DOF body keeps its column in registers.
+template <class L, int N, class Entry>
 LOCKSTEP_INLINE void carry_columns_to_ancestors(const KernelModel<lane::scalar_t<L>>& km, const Workspace<L>& ws, int b,
-                                                Vec6<L> (&F)[6], int n, Entry&& entry) {
+                                                Vec6<L> (&F)[N], int n, Entry&& entry) {
   for (int j = b; km.body_parent[j] >= 0;) {
     for (int l = 0; l < n; ++l) F[l] = spatial::force_to_parent(ws.local[j], F[l]);
     j = km.body_parent[j];
@@ -125,21 +126,25 @@ void ltdl_factor_from_aba(const KernelModel<lane::scalar_t<L>>& km, const Worksp
     int axes[6];
     const int n = joint_axes(km.body_joint[b], axes);
     const int dof0 = km.body_dof_offset[b];
+    auto diagonal = [&](int k, const L& u) {  // ABA's D, rounded alike
+      return u + L(km.dof_armature[dof0 + k]) + implicit_diagonal[dof0 + k];
+    };
+    if (n == 1) {  // nothing to eliminate inside the body: carry U / D, whose entries are L's
+      const L* U = &ws.joint_U[6 * dof0];
+      const L d = diagonal(0, U[axes[0]]);
+      lane::store(d, at(dof0, dof0));
+      const L inverse = L(T(1)) / d;
+      Vec6<L> F[1];
+      for (int r = 0; r < 6; ++r) F[0].e[r] = U[r] * inverse;
+      carry_columns_to_ancestors<L>(km, ws, b, F, 1, [&](int i, int, const L& a) { lane::store(a, at(dof0, i)); });
+      continue;
+    }
     Vec6<L> F[6];
     for (int l = 0; l < n; ++l)
       for (int r = 0; r < 6; ++r) F[l].e[r] = ws.joint_U[6 * (dof0 + l) + r];
     for (int k = 0; k < n; ++k)
-      for (int l = 0; l <= k; ++l) {
-        L m = F[l].e[axes[k]];
-        if (k == l) m = m + L(km.dof_armature[dof0 + k]) + implicit_diagonal[dof0 + k];  // ABA's D, rounded alike
-        lane::store(m, at(dof0 + k, dof0 + l));
-      }
-    if (n == 1) {  // nothing to eliminate inside the body: carry U / D, whose entries are L's
-      const L inverse = L(T(1)) / lane::load<L>(at(dof0, dof0));
-      for (int r = 0; r < 6; ++r) F[0].e[r] = F[0].e[r] * inverse;
-      carry_columns_to_ancestors<L>(km, ws, b, F, n, [&](int i, int, const L& a) { lane::store(a, at(dof0, i)); });
-      continue;
-    }
+      for (int l = 0; l <= k; ++l)
+        lane::store(k == l ? diagonal(k, F[l].e[axes[k]]) : F[l].e[axes[k]], at(dof0 + k, dof0 + l));
     carry_columns_to_ancestors<L>(km, ws, b, F, n, [&](int i, int l, const L& m) { lane::store(m, at(dof0 + l, i)); });
     for (int k = dof0 + n - 1; k >= dof0; --k) {
       const L inverse = L(T(1)) / lane::load<L>(at(k, k));
