@@ -150,6 +150,8 @@ class Simulator {
   StepProfile profile() const;
 
   // The stages the pipeline runs for this scene, each with the reason.
+  // Reading the plan makes it again when a per-copy input changed it since,
+  // so (like the setters) call plan() and describe_plan() from one thread.
   const std::vector<StageDecision>& plan() const;
   std::string describe_plan() const;
   // The constraint rows per copy (limit, velocity-limit and friction rows).
