@@ -206,6 +206,7 @@ ContactPairs build_contact_pairs(const Model& model, const ContactSettings& sett
     ContactPair pair{kind_of(a.cls, b.cls, b.cylinder), a.side, b.side, friction, restitution,
                      out.candidates};
     out.candidates += pair_candidates(pair.kind);
+    out.candidate_pair.resize(out.candidates, static_cast<int>(out.pairs.size()));
     out.pairs.push_back(pair);
   };
 

@@ -39,6 +39,7 @@ struct ContactPair {
 struct ContactPairs {
   std::vector<ContactPair> pairs;
   int candidates = 0;  // total narrowphase points
+  std::vector<int> candidate_pair;  // (candidates) the pair each candidate number belongs to
   std::vector<std::string> notes;  // shapes left out and why (meshes)
 };
 

@@ -145,12 +145,6 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   validate(model, copies, options_, dofs_);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
-  candidate_pair_.resize(pairs_.candidates);
-  for (std::size_t p = 0; p < pairs_.pairs.size(); ++p) {
-    const auto end = p + 1 < pairs_.pairs.size() ? pairs_.pairs[p + 1].first_candidate : pairs_.candidates;
-    std::fill(candidate_pair_.begin() + pairs_.pairs[p].first_candidate, candidate_pair_.begin() + end,
-              static_cast<int>(p));
-  }
   own_inertia_.assign(copies, false);
   make_plan();
   const StepPlan plan = step_plan();
@@ -647,7 +641,7 @@ void Simulator::visit_contacts(int copy, F&& f) const {
     for (int c = 0; c < b.contact_id.size(); ++c) {
       const int id = static_cast<int>(ids[c * W]);
       if (id < 0) break;  // a copy's contacts fill its slots from the first
-      const ContactPair& pair = pairs_.pairs[candidate_pair_[id]];
+      const ContactPair& pair = pairs_.pairs[pairs_.candidate_pair[id]];
       Contact contact;
       contact.shape_a = pair.a.shape;
       contact.shape_b = pair.b.shape;

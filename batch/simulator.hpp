@@ -254,7 +254,6 @@ class Simulator {
   mutable std::vector<StageDecision> plan_;
   mutable bool plan_stale_ = false;
   ContactPairs pairs_;
-  std::vector<int> candidate_pair_;  // (pairs_.candidates) the pair each contact candidate number belongs to
   double time_ = 0.0;
   bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive
   bool per_copy_damping_ = false;  // set_joint_damping gave some copy damping

@@ -73,6 +73,24 @@ TEST(ContactPairs, SelfCollisionSkipsAdjacentFusedAndShapelessLinks) {
   EXPECT_TRUE(pair_names(chain(false), s).empty());
 }
 
+// Every candidate number names the pair whose narrowphase makes it: the
+// pairs' ranges [first_candidate, next pair's) tile [0, candidates).
+TEST(ContactPairs, CandidateNumbersMapToTheirPair) {
+  ContactSettings s;
+  s.self_collision = {true};
+  s.ground = true;
+  const ContactPairs pairs = build_contact_pairs(chain(false), s);
+  ASSERT_GT(pairs.pairs.size(), 2u);
+  ASSERT_EQ(static_cast<int>(pairs.candidate_pair.size()), pairs.candidates);
+  for (std::size_t p = 0; p < pairs.pairs.size(); ++p) {
+    const int end = p + 1 < pairs.pairs.size() ? pairs.pairs[p + 1].first_candidate : pairs.candidates;
+    ASSERT_LT(pairs.pairs[p].first_candidate, end) << "pair " << p << " has no candidates";
+    for (int id = pairs.pairs[p].first_candidate; id < end; ++id)
+      EXPECT_EQ(pairs.candidate_pair[id], static_cast<int>(p)) << "candidate " << id;
+  }
+  EXPECT_EQ(pairs.pairs.front().first_candidate, 0);
+}
+
 TEST(ContactPairs, NamedPairsOverrideAndLayersFilter) {
   const Model model = chain(false);
   ContactSettings s;
