@@ -43,8 +43,8 @@ namespace {
 // Zero joint-row impulses, no contact points: nothing to warm-start from.
 template <class T>
 void clear_warm_start(StepBatch<T>& b, int copy) {
-  b.impulse.set(copy, Eigen::VectorXd::Zero(b.impulse.size()));
-  if (b.contact_id.size() > 0) b.contact_id.set(copy, Eigen::VectorXd::Constant(b.contact_id.size(), -1.0));
+  b.impulse.fill(copy, 0);
+  b.contact_id.fill(copy, -1);
 }
 
 // Symmetric positive semidefinite, round-off aside: asymmetry and the
@@ -336,12 +336,11 @@ Eigen::VectorXd Simulator::v(int copy) const {
   return visit([&](auto& b) { return b.state.v.get(copy); });
 }
 
-// q with every quaternion normalised; throws on a zero or non-finite one.
-Eigen::VectorXd Simulator::checked_configuration(const Eigen::VectorXd& q, const char* what) const {
+void Simulator::checked_configuration(const Eigen::VectorXd& q, const char* what, Eigen::VectorXd& out) const {
   require(q.size() == model_->nq, [&] {
     return std::string(what) + ": expected " + std::to_string(model_->nq) + " values, got " + std::to_string(q.size());
   });
-  Eigen::VectorXd out = q;
+  out = q;  // no allocation once out has nq entries
   for (int i = 0; i < q.size(); ++i)
     require(std::isfinite(q[i]), [&] { return std::string(what) + ": entry " + std::to_string(i) + " is not finite"; });
   for (int b = 0; b < model_->nbody; ++b) {
@@ -353,7 +352,6 @@ Eigen::VectorXd Simulator::checked_configuration(const Eigen::VectorXd& q, const
             [&] { return std::string(what) + ": the quaternion of joint " + model_->joint_name[b] + " is zero"; });
     out.segment<4>(at) /= norm;
   }
-  return out;
 }
 
 void Simulator::check_velocity(const Eigen::VectorXd& v, const char* what) const {
@@ -364,7 +362,8 @@ void Simulator::check_velocity(const Eigen::VectorXd& v, const char* what) const
 
 void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
   check_copy(copy);
-  const Eigen::VectorXd qn = checked_configuration(q, "set_state q");
+  Eigen::VectorXd& qn = configuration_;
+  checked_configuration(q, "set_state q", qn);
   check_velocity(v, "set_state v");
   for (int k = 0; k < v.size(); ++k)
     require(std::isfinite(v[k]), [&] { return "set_state v: entry " + std::to_string(k) + " is not finite"; });
@@ -438,7 +437,7 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
 void Simulator::note_copy_inputs(int copy) {
   bool changed = false;
   visit([&](auto& b) {
-    auto nonzero = [&](const auto& a) { return a.get(copy).any(); };
+    auto nonzero = [&](const auto& a) { return a.any_nonzero(copy); };
     if (!per_copy_gains_ && (nonzero(b.drive_stiffness) || nonzero(b.drive_damping))) per_copy_gains_ = changed = true;
     if (!per_copy_damping_ && nonzero(b.joint_damping)) per_copy_damping_ = changed = true;
     if (!wrenches_used_ && nonzero(b.state.wrench)) wrenches_used_ = changed = true;
@@ -594,8 +593,8 @@ void Simulator::clear_fault(int copy) {
 void Simulator::reset(int copy) {
   check_copy(copy);
   visit([&](auto& b) {
-    b.state.q.set(copy, b.initial_q.get(copy));
-    b.state.v.set(copy, b.initial_v.get(copy));
+    b.state.q.set_from(copy, b.initial_q);
+    b.state.v.set_from(copy, b.initial_v);
     clear_warm_start(b, copy);
     for (auto* a : {&b.contact_count, &b.contact_dropped, &b.contact_overflow_steps})
       if (a->size() > 0) a->at(copy, 0) = 0;
@@ -623,7 +622,7 @@ void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& norma
   const Eigen::Vector3d n = normal.normalized();
   visit([&](auto& b) {
     b.ground.set(copy, Eigen::Vector4d(n.x(), n.y(), n.z(), n.z() * height));
-    b.ground_friction.set(copy, Eigen::VectorXd::Constant(1, friction));
+    b.ground_friction.fill(copy, static_cast<std::decay_t<decltype(b.ground_friction.at(0, 0))>>(friction));
   });
 }
 

@@ -241,7 +241,8 @@ class Simulator {
   // a stage the plan skips.
   void note_copy_inputs(int copy);
   void note_own_inertia(int copy, bool own);
-  Eigen::VectorXd checked_configuration(const Eigen::VectorXd& q, const char* what) const;
+  // out = q with every quaternion normalised; throws on a zero or non-finite one.
+  void checked_configuration(const Eigen::VectorXd& q, const char* what, Eigen::VectorXd& out) const;
   template <class F>
   decltype(auto) visit(F&& f) const;
   // f(const Contact&) for each contact of the copy's last step.
@@ -259,6 +260,7 @@ class Simulator {
   bool per_copy_damping_ = false;  // set_joint_damping gave some copy damping
   bool wrenches_used_ = false;   // set_link_wrench was called
   std::vector<bool> own_inertia_;  // per copy: set_body_inertia or a restore gave it inertias other than the model's
+  Eigen::VectorXd configuration_;  // set_state's normalised q, kept so that a reset allocates nothing
   std::unique_ptr<Engine> engine_;
   // The engine's batch, in the precision it runs (the other is null): the
   // per-copy accessors reach it without a cast.

@@ -77,6 +77,7 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options)
   last_fault_.assign(copies, Fault::None);
   episode_step_.assign(copies, 0);
   reset_count_.assign(copies, 0);
+  ended_.reserve(copies);  // step() fills it without allocating
 }
 
 void VecEnv::reset() {
@@ -136,7 +137,11 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   if (r.randomize_ground_friction && contact.ground)
     sim_.set_ground(c, contact.ground_height, contact.ground_normal, value(&Randomization::ground_friction, 0));
 
-  Eigen::VectorXd kp = Eigen::VectorXd::Zero(m.nv), kd = kp, damping = kp, armature = kp, friction = kp;
+  // the draws go into vectors kept from reset to reset: a reset allocates nothing
+  ResetScratch& scratch = reset_scratch_;
+  Eigen::VectorXd &kp = scratch.kp, &kd = scratch.kd, &damping = scratch.damping, &armature = scratch.armature,
+                  &friction = scratch.friction;
+  for (Eigen::VectorXd* x : {&kp, &kd, &damping, &armature, &friction}) x->setZero(m.nv);
   for (int k = 0; k < m.nv; ++k) {
     const DofSettings& d = options_.dofs[k];
     damping[k] = d.damping * value(&Randomization::damping_scale, k);
@@ -157,7 +162,8 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   sim_.set_gravity(c, gravity);
 
   // Initial state: the configured one plus noise.
-  Eigen::VectorXd q = options_.initial_q, v = options_.initial_v;
+  Eigen::VectorXd &q = scratch.q, &v = scratch.v;
+  q = options_.initial_q, v = options_.initial_v;
   for (int b = 0; b < m.nbody; ++b) {
     const int qo = m.body_q_offset[b], k0 = m.body_dof_offset[b];
     switch (m.body_joint[b]) {
@@ -187,8 +193,9 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   }
   sim_.set_state(c, q, v);  // also the copy's initial state
   sim_.reset(c);            // warm start, contact counters and fault cleared
-  sim_.set_torque(c, Eigen::VectorXd::Zero(m.nv));
-  sim_.set_drive_target(c, options_.drive_target_q, Eigen::VectorXd::Zero(m.nv));
+  scratch.zero.setZero(m.nv);
+  sim_.set_torque(c, scratch.zero);
+  sim_.set_drive_target(c, options_.drive_target_q, scratch.zero);
 }
 
 template <class F>

@@ -180,6 +180,9 @@ class VecEnv {
   std::vector<int> ended_;  // copies whose episode ended in the last step
   std::vector<std::uint32_t> reset_count_;
   std::int64_t steps_ = 0;
+  struct ResetScratch {  // randomize's vectors, kept so that a reset allocates nothing
+    Eigen::VectorXd kp, kd, damping, armature, friction, q, v, zero;
+  } reset_scratch_;
 };
 
 }  // namespace lockstep

@@ -63,12 +63,36 @@ class BatchArray {
     for (int k = 0; k < size_; ++k) out[k] = static_cast<double>(at(copy, k));
     return out;
   }
-  void set(int copy, const Eigen::VectorXd& values) {
+  // values: any double vector (fixed-size ones and segments bind without a copy)
+  void set(int copy, const Eigen::Ref<const Eigen::VectorXd>& values) {
     check_copy(copy);
     if (values.size() != size_)
       throw std::invalid_argument("BatchArray::set: copy " + std::to_string(copy) + " expects " + std::to_string(size_) +
                                   " values, got " + std::to_string(values.size()));
-    for (int k = 0; k < size_; ++k) at(copy, k) = static_cast<T>(values[k]);
+    T* out = lane(copy);
+    for (int k = 0; k < size_; ++k) out[k * width_] = static_cast<T>(values[k]);
+  }
+  // One copy's values all set to `value`; from the same copy of `source`
+  // (an array of the same shape); whether any is nonzero. None allocates.
+  void fill(int copy, T value) {
+    check_copy(copy);
+    T* out = lane(copy);
+    for (int k = 0; k < size_; ++k) out[k * width_] = value;
+  }
+  void set_from(int copy, const BatchArray& source) {
+    check_copy(copy);
+    if (source.size_ != size_ || source.width_ != width_)
+      throw std::invalid_argument("BatchArray::set_from: arrays of different shapes");
+    const T* in = source.lane(copy);
+    T* out = lane(copy);
+    for (int k = 0; k < size_; ++k) out[k * width_] = in[k * width_];
+  }
+  bool any_nonzero(int copy) const {
+    check_copy(copy);
+    const T* in = lane(copy);
+    for (int k = 0; k < size_; ++k)
+      if (in[k * width_] != T(0)) return true;
+    return false;
   }
   // The same values in every copy, padding lanes included.
   void set_all(const Eigen::VectorXd& values) {

@@ -1,0 +1,156 @@
+// The hot path allocates nothing: Simulator::step after its first step,
+// with contacts and joint rows, PGS and TGS, float and double, and
+// VecEnv::step with and without auto-reset. This test program defines
+// malloc and its kin, which count every allocation of any thread while
+// `counting` is set. The tests run on one thread: each TBB worker builds
+// its step workspace the first time it steps a block (about 200
+// allocations, once per thread), and with several threads which step that
+// is depends on the machine's load.
+#include "batch/simulator.hpp"
+#include "batch/vec_env.hpp"
+#include "tests/sim_support.hpp"
+#include "tools/step_scene.hpp"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstddef>
+#include <vector>
+
+namespace {
+
+std::atomic<bool> counting{false};
+std::atomic<long> allocations{0};
+
+void note_allocation() {
+  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
+}
+
+}  // namespace
+
+// glibc's allocator under its own names; the definitions below take the
+// standard names for the whole program (operator new, Eigen, TBB and the
+// libraries all call them).
+extern "C" {
+void* __libc_malloc(std::size_t size);
+void* __libc_calloc(std::size_t count, std::size_t size);
+void* __libc_realloc(void* p, std::size_t size);
+void* __libc_memalign(std::size_t alignment, std::size_t size);
+void __libc_free(void* p);
+
+void* malloc(std::size_t size) {
+  note_allocation();
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t count, std::size_t size) {
+  note_allocation();
+  return __libc_calloc(count, size);
+}
+void* realloc(void* p, std::size_t size) {
+  note_allocation();
+  return __libc_realloc(p, size);
+}
+void* memalign(std::size_t alignment, std::size_t size) {
+  note_allocation();
+  return __libc_memalign(alignment, size);
+}
+void* aligned_alloc(std::size_t alignment, std::size_t size) {
+  note_allocation();
+  return __libc_memalign(alignment, size);
+}
+int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
+  note_allocation();
+  *out = __libc_memalign(alignment, size);
+  return *out ? 0 : ENOMEM;
+}
+void free(void* p) { __libc_free(p); }
+}
+
+namespace lockstep {
+namespace {
+
+// Allocations made by f.
+template <class F>
+long allocations_of(F&& f) {
+  allocations = 0;
+  counting = true;
+  f();
+  counting = false;
+  return allocations.load();
+}
+
+int* volatile kept = nullptr;  // an allocation that escapes, so the compiler cannot elide it
+
+TEST(Allocations, TheCountCanSeeOne) {
+  EXPECT_EQ(allocations_of([] { kept = new int(1); }), 1);
+  delete kept;
+  EXPECT_EQ(allocations_of([] { std::vector<double> v(7); kept = reinterpret_cast<int*>(v.data()); }), 1);
+  EXPECT_EQ(allocations_of([] { Eigen::VectorXd v(7); kept = reinterpret_cast<int*>(v.data()); }), 1) << "Eigen's own";
+}
+
+// anymal_b standing on the ground (4 foot contacts, 24 joint rows), 40
+// copies (a partial last block).
+TEST(Allocations, StepAllocatesNothingAfterItsFirst) {
+  tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
+  const Model model = test::load_shared_model("anymal_b", true);
+  const step_scene::Scene scene = step_scene::make_scene(model, true);
+  for (Precision precision : {Precision::Float, Precision::Double})
+    for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
+      StepOptions o = test::scene_options(precision, solver);
+      o.contacts.ground = true;
+      Simulator sim(model, 40, o, scene.dofs);
+      for (int c = 0; c < 40; ++c) {
+        sim.set_state(c, scene.q0, Eigen::VectorXd::Zero(model.nv));
+        sim.set_drive_target(c, scene.q_target, Eigen::VectorXd::Zero(model.nv));
+      }
+      sim.step();  // the thread's workspace
+      EXPECT_EQ(allocations_of([&] { sim.step(5); }), 0)
+          << precision_name(precision) << " " << solver_name(solver);
+      EXPECT_GT(sim.contacts(0).size(), 0u) << "the scene has contacts";
+    }
+}
+
+// VecEnv::step: the actions, the steps, the observations and the
+// episodes' bookkeeping, and with episodes of 3 env steps also auto-reset
+// (randomisation, the copies' new state, terminal observations). The
+// counted steps follow two uncounted ones; with episodes they include the
+// first step that resets copies.
+TEST(Allocations, VecEnvStepAllocatesNothingWithOrWithoutResets) {
+  tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
+  const Model model = test::load_shared_model("anymal_b", true);
+  const step_scene::Scene scene = step_scene::make_scene(model, true);
+  for (int episode : {0, 3}) {
+    VecEnvOptions o;
+    o.step.contacts.ground = true;
+    o.dofs = scene.dofs;
+    o.action_mode = ActionMode::PositionTarget;
+    o.initial_q = scene.q0;
+    o.episode_steps = episode;
+    Randomization& r = o.randomization;
+    r.mass_scale = {0.9, 1.1};
+    r.kp_scale = r.damping_scale = {0.9, 1.1};
+    r.randomize_ground_friction = true;
+    r.ground_friction = {0.6, 1.0};
+    r.joint_position_noise = r.root_yaw_noise = {-0.05, 0.05};
+    VecEnv env(model, 40, o);
+    env.reset();
+    const RowMatrix actions = RowMatrix::Zero(40, env.action_size());
+    env.step(actions);
+    env.step(actions);
+    long resets = 0;
+    EXPECT_EQ(allocations_of([&] {
+                for (int i = 0; i < 3; ++i) {
+                  env.step(actions);
+                  for (std::uint8_t t : env.truncated()) resets += t;
+                }
+              }),
+              0)
+        << "episodes of " << episode << " env steps";
+    EXPECT_EQ(resets, episode > 0 ? 40 : 0) << "the counted steps reset every copy once";
+  }
+}
+
+}  // namespace
+}  // namespace lockstep
