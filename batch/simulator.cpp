@@ -622,7 +622,7 @@ void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& norma
   const Eigen::Vector3d n = normal.normalized();
   visit([&](auto& b) {
     b.ground.set(copy, Eigen::Vector4d(n.x(), n.y(), n.z(), n.z() * height));
-    b.ground_friction.fill(copy, static_cast<std::decay_t<decltype(b.ground_friction.at(0, 0))>>(friction));
+    b.ground_friction.fill(copy, friction);
   });
 }
 
