@@ -4,6 +4,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 
@@ -121,10 +122,17 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   if (plan.contacts) candidates = set_up_contacts(copies, options.contacts, pairs);
   else make_contact_arrays(copies, 0, 0, options.contacts);
   const int rows = static_cast<int>(row_specs_.size()), columns = static_cast<int>(column_dof_.size());
-  scratch_ = std::make_unique<tbb::enumerable_thread_specific<ScratchPair>>([this, rows, columns, candidates] {
-    return ScratchPair{{Scratch(km_, rows, columns, contact_params_, candidates),
-                        Scratch(km_, rows, columns, contact_params_, candidates)}};
-  });
+  scratch_rows_ = rows, scratch_columns_ = columns, scratch_candidates_ = candidates;
+  reserve_scratch(tbb::this_task_arena::max_concurrency());
+}
+
+template <class L>
+void StepEngine<L>::reserve_scratch(int slots) {
+  while (static_cast<int>(scratch_.size()) < slots) {
+    auto make = [&] { return Scratch(km_, scratch_rows_, scratch_columns_, contact_params_, scratch_candidates_); };
+    scratch_.push_back(std::make_unique<ScratchPair>(ScratchPair{{make(), make()}}));
+    for (Scratch& s : scratch_.back()->s) s.clock.on = profiling_;
+  }
 }
 
 // The pairs in the kernels' precision, the contact parameters, the per-copy
@@ -222,10 +230,10 @@ void StepEngine<L>::step(int substeps, double dt) {
   // blocks in pairs (the last one alone when their count is odd), whose
   // solves may run side by side (step_blocks)
   const int blocks = batch_.state.q.blocks();
+  reserve_scratch(tbb::this_task_arena::max_concurrency());  // an arena wider than at construction
   tbb::parallel_for(tbb::blocked_range<int>(0, (blocks + 1) / 2), [&](const tbb::blocked_range<int>& range) {
     const DenormalGuard flush_denormals;
-    ScratchPair& pair = scratch_->local();
-    for (Scratch& s : pair.s) s.clock.on = profiling_;
+    ScratchPair& pair = *scratch_[tbb::this_task_arena::current_thread_index()];
     for (int p = range.begin(); p != range.end(); ++p)
       for (int k = 0; k < substeps; ++k) step_blocks(2 * p, std::min(2, blocks - 2 * p), h, pair.s);
   });
@@ -233,16 +241,16 @@ void StepEngine<L>::step(int substeps, double dt) {
 
 template <class L>
 void StepEngine<L>::set_profiling(bool on) {
-  for (ScratchPair& pair : *scratch_)
-    for (Scratch& s : pair.s) s.clock = PhaseClock{on, {}, {}};
+  for (auto& pair : scratch_)
+    for (Scratch& s : pair->s) s.clock = PhaseClock{on, {}, {}};
   profiling_ = on;
 }
 
 template <class L>
 StepProfile StepEngine<L>::profile() const {
   StepProfile sum;
-  for (const ScratchPair& pair : *scratch_)
-    for (const Scratch& s : pair.s)
+  for (const auto& pair : scratch_)
+    for (const Scratch& s : pair->s)
       for (double StepProfile::*phase : {&StepProfile::dynamics, &StepProfile::contact_detection,
                                          &StepProfile::constraint_solve, &StepProfile::integration})
         sum.*phase += s.clock.seconds.*phase;

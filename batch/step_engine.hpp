@@ -11,9 +11,9 @@
 #include "kernels/joint_rows.hpp"
 #include "kernels/joint_terms.hpp"
 
-#include <tbb/enumerable_thread_specific.h>
 
 #include <chrono>
+#include <memory>
 
 namespace lockstep {
 
@@ -195,7 +195,14 @@ class StepEngine final : public Simulator::Engine {
   ContactParams<T> contact_params_;
   StepBatch<T> batch_;
   BatchArray<T> model_inertia_;  // one block of the model's inertial parameters
-  std::unique_ptr<tbb::enumerable_thread_specific<ScratchPair>> scratch_;  // made once the rows are known
+  // One ScratchPair per thread slot of the arena that steps, indexed by
+  // tbb::this_task_arena::current_thread_index(): all of them are made
+  // before a step's blocks run (reserve_scratch), so no worker allocates
+  // on its first block. Sized by the rows, columns and narrowphase points
+  // known at construction.
+  std::vector<std::unique_ptr<ScratchPair>> scratch_;
+  int scratch_rows_ = 0, scratch_columns_ = 0, scratch_candidates_ = 0;
+  void reserve_scratch(int slots);
   bool profiling_ = false;
 };
 

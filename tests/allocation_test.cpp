@@ -2,10 +2,9 @@
 // with contacts and joint rows, PGS and TGS, float and double, and
 // VecEnv::step with and without auto-reset. This test program defines
 // malloc and its kin, which count every allocation of any thread while
-// `counting` is set. The tests run on one thread: each TBB worker builds
-// its step workspace the first time it steps a block (about 200
-// allocations, once per thread), and with several threads which step that
-// is depends on the machine's load.
+// `counting` is set. They run on one thread and on two (the step's
+// workspace of every thread slot is made before its blocks run); the
+// uncounted first steps let TBB start its workers.
 #include "batch/simulator.hpp"
 #include "batch/vec_env.hpp"
 #include "tests/sim_support.hpp"
@@ -90,26 +89,32 @@ TEST(Allocations, TheCountCanSeeOne) {
   EXPECT_EQ(allocations_of([] { Eigen::VectorXd v(7); kept = reinterpret_cast<int*>(v.data()); }), 1) << "Eigen's own";
 }
 
-// anymal_b standing on the ground (4 foot contacts, 24 joint rows), 40
-// copies (a partial last block).
+// anymal_b standing on the ground (4 foot contacts, 24 joint rows), 200
+// copies (a partial last block). The first step runs on one thread, so
+// that on two threads the second one steps its first block while counted.
 TEST(Allocations, StepAllocatesNothingAfterItsFirst) {
-  tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
   const Model model = test::load_shared_model("anymal_b", true);
   const step_scene::Scene scene = step_scene::make_scene(model, true);
-  for (Precision precision : {Precision::Float, Precision::Double})
-    for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
-      StepOptions o = test::scene_options(precision, solver);
-      o.contacts.ground = true;
-      Simulator sim(model, 40, o, scene.dofs);
-      for (int c = 0; c < 40; ++c) {
-        sim.set_state(c, scene.q0, Eigen::VectorXd::Zero(model.nv));
-        sim.set_drive_target(c, scene.q_target, Eigen::VectorXd::Zero(model.nv));
+  const int copies = 200;
+  for (int threads : {1, 2})
+    for (Precision precision : {Precision::Float, Precision::Double})
+      for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
+        tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, threads);
+        StepOptions o = test::scene_options(precision, solver);
+        o.contacts.ground = true;
+        Simulator sim(model, copies, o, scene.dofs);
+        for (int c = 0; c < copies; ++c) {
+          sim.set_state(c, scene.q0, Eigen::VectorXd::Zero(model.nv));
+          sim.set_drive_target(c, scene.q_target, Eigen::VectorXd::Zero(model.nv));
+        }
+        {
+          tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+          sim.step();
+        }
+        EXPECT_EQ(allocations_of([&] { sim.step(5); }), 0)
+            << threads << " thread(s), " << precision_name(precision) << " " << solver_name(solver);
+        EXPECT_GT(sim.contacts(0).size(), 0u) << "the scene has contacts";
       }
-      sim.step();  // the thread's workspace
-      EXPECT_EQ(allocations_of([&] { sim.step(5); }), 0)
-          << precision_name(precision) << " " << solver_name(solver);
-      EXPECT_GT(sim.contacts(0).size(), 0u) << "the scene has contacts";
-    }
 }
 
 // VecEnv::step: the actions, the steps, the observations and the
@@ -118,38 +123,39 @@ TEST(Allocations, StepAllocatesNothingAfterItsFirst) {
 // counted steps follow two uncounted ones; with episodes they include the
 // first step that resets copies.
 TEST(Allocations, VecEnvStepAllocatesNothingWithOrWithoutResets) {
-  tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
   const Model model = test::load_shared_model("anymal_b", true);
   const step_scene::Scene scene = step_scene::make_scene(model, true);
-  for (int episode : {0, 3}) {
-    VecEnvOptions o;
-    o.step.contacts.ground = true;
-    o.dofs = scene.dofs;
-    o.action_mode = ActionMode::PositionTarget;
-    o.initial_q = scene.q0;
-    o.episode_steps = episode;
-    Randomization& r = o.randomization;
-    r.mass_scale = {0.9, 1.1};
-    r.kp_scale = r.damping_scale = {0.9, 1.1};
-    r.randomize_ground_friction = true;
-    r.ground_friction = {0.6, 1.0};
-    r.joint_position_noise = r.root_yaw_noise = {-0.05, 0.05};
-    VecEnv env(model, 40, o);
-    env.reset();
-    const RowMatrix actions = RowMatrix::Zero(40, env.action_size());
-    env.step(actions);
-    env.step(actions);
-    long resets = 0;
-    EXPECT_EQ(allocations_of([&] {
-                for (int i = 0; i < 3; ++i) {
-                  env.step(actions);
-                  for (std::uint8_t t : env.truncated()) resets += t;
-                }
-              }),
-              0)
-        << "episodes of " << episode << " env steps";
-    EXPECT_EQ(resets, episode > 0 ? 40 : 0) << "the counted steps reset every copy once";
-  }
+  for (int threads : {1, 2})
+    for (int episode : {0, 3}) {
+      tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, threads);
+      VecEnvOptions o;
+      o.step.contacts.ground = true;
+      o.dofs = scene.dofs;
+      o.action_mode = ActionMode::PositionTarget;
+      o.initial_q = scene.q0;
+      o.episode_steps = episode;
+      Randomization& r = o.randomization;
+      r.mass_scale = {0.9, 1.1};
+      r.kp_scale = r.damping_scale = {0.9, 1.1};
+      r.randomize_ground_friction = true;
+      r.ground_friction = {0.6, 1.0};
+      r.joint_position_noise = r.root_yaw_noise = {-0.05, 0.05};
+      VecEnv env(model, 40, o);
+      env.reset();
+      const RowMatrix actions = RowMatrix::Zero(40, env.action_size());
+      env.step(actions);
+      env.step(actions);
+      long resets = 0;
+      EXPECT_EQ(allocations_of([&] {
+                  for (int i = 0; i < 3; ++i) {
+                    env.step(actions);
+                    for (std::uint8_t t : env.truncated()) resets += t;
+                  }
+                }),
+                0)
+          << threads << " thread(s), episodes of " << episode << " env steps";
+      EXPECT_EQ(resets, episode > 0 ? 40 : 0) << "the counted steps reset every copy once";
+    }
 }
 
 }  // namespace
