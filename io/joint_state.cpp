@@ -35,6 +35,10 @@ int joint_body(const Model& model, const std::string& name, const std::string& w
   for (std::size_t f = 0; f < model.frame_joint_name.size(); ++f)
     if (model.frame_joint_name[f] == name)
       throw StateError(where + ": joint \"" + name + "\" is fixed and has no coordinates");
+  for (const Articulation& a : model.articulations)
+    if (!a.floating_base && name == a.name + "_root")
+      throw StateError(where + ": unknown joint \"" + name + "\": the model is fixed-base; its floating base " +
+                       "(this name) exists with --floating-base");
   throw StateError(where + ": unknown joint \"" + name + "\" (run `lockstep info` to list the joints)");
 }
 

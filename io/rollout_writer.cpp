@@ -20,6 +20,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <set>
 #include <thread>
 
@@ -262,18 +263,26 @@ struct RolloutWriter::Impl {
   void create(const std::vector<StaticDataset>& statics, const std::vector<Attribute>& attributes,
               std::size_t chunk_steps, int compression) {
     const Hdf5Lock lock = lock_hdf5();
+    std::error_code ignored;
+    if (std::filesystem::is_directory(path, ignored))
+      throw RolloutFileError(path + ": is a directory; the rollout file needs a file name");
     const std::string creating = path + ".creating";
     file = create_file(creating, path);
     try {
       fill_new_file(statics, attributes, chunk_steps, compression);
-      if (std::rename(creating.c_str(), path.c_str()) != 0)
-        throw RolloutFileError(path + ": cannot rename " + creating + " to it: " + std::strerror(errno));
     } catch (const RolloutFileError&) {
       discard_further_writes(file.get());  // so that closing cannot fail
       slots.clear();
       file.reset();
       std::remove(creating.c_str());
       throw;
+    }
+    if (std::rename(creating.c_str(), path.c_str()) != 0) {  // the file is whole: close it as usual
+      const int rename_error = errno;
+      slots.clear();
+      file.reset();
+      std::remove(creating.c_str());
+      throw RolloutFileError(path + ": cannot rename " + creating + " to it: " + std::strerror(rename_error));
     }
   }
 

@@ -224,7 +224,8 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
   std::vector<std::string> warnings;
   tinyxml2::XMLDocument doc;
   if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS)
-    throw ModelError(src + ":" + std::to_string(doc.ErrorLineNum()) + ": not valid XML: " + doc.ErrorStr());
+    throw ModelError(src + ":" + std::to_string(doc.ErrorLineNum()) + ": not valid XML (" + doc.ErrorName() +
+                     "); a URDF is an XML file whose root element is <robot>");
   XMLElement* robot = doc.RootElement();
   if (!robot || std::string(robot->Name()) != "robot")
     throw ModelError(src + ": the root element is not <robot>");
@@ -419,11 +420,18 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
 
 ArticulationSpec urdf_articulation_from_file(const std::string& path, const UrdfOptions& options,
                                              std::vector<std::string>* warnings) {
+  std::error_code ignored;
+  // a relative path also as the absolute one it was looked for at
+  const std::string where = std::filesystem::path(path).is_absolute()
+                                ? path
+                                : path + " (" + std::filesystem::absolute(path, ignored).string() + ")";
+  if (std::filesystem::is_directory(path, ignored)) throw ModelError(where + ": is a directory, not a URDF file");
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw ModelError(path + ": cannot open the URDF file");
+  if (!in) throw ModelError(where + ": cannot open the URDF file");
   std::ostringstream text;
   text << in.rdbuf();
-  if (in.bad()) throw ModelError(path + ": cannot read the URDF file");
+  if (in.bad()) throw ModelError(where + ": cannot read the URDF file");
+  if (text.str().empty()) throw ModelError(where + ": the file is empty");
   return urdf_articulation_from_string(text.str(), path, options, warnings);
 }
 

@@ -122,9 +122,9 @@ void ModelBuilder::set_gravity(const Eigen::Vector3d& gravity) {
   gravity_ = gravity;
 }
 
-void ModelBuilder::warn_or_throw(const std::string& message) {
-  if (options_.strict) throw ModelError(message + " (strict mode)");
-  warnings_.push_back(message);
+void ModelBuilder::warn_or_throw(const std::string& problem, const std::string& kept) {
+  if (options_.strict) throw ModelError(problem + " (an error in strict mode)");
+  warnings_.push_back(kept.empty() ? problem : problem + "; " + kept);
 }
 
 std::string ModelBuilder::root_joint_name(const ArticulationSpec& spec) {
@@ -292,7 +292,8 @@ int ModelBuilder::add_articulation(const ArticulationSpec& spec_in) {
     }
     if (ev[0] + ev[1] < ev[2] - 1e-9 * scale)
       warn_or_throw(link_ctx(spec, link) + ": principal moments of inertia (" + num(ev[0]) + ", " + num(ev[1]) + ", " +
-                    num(ev[2]) + ") violate the triangle inequality; kept as written");
+                        num(ev[2]) + ") violate the triangle inequality",
+                    "kept as written");
   }
 
   articulations_.push_back(std::move(spec));

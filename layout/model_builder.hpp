@@ -100,7 +100,9 @@ class ModelBuilder {
   void add_warning(const std::string& message) { warnings_.push_back(message); }
 
  private:
-  void warn_or_throw(const std::string& message);
+  // A warning (problem, then what was done about it: `kept`), or under
+  // BuildOptions::strict a ModelError saying that strict mode rejects it.
+  void warn_or_throw(const std::string& problem, const std::string& kept = "");
   void check_inertial(const ArticulationSpec& spec, const LinkSpec& link) const;
   void check_joint(const ArticulationSpec& spec, const LinkSpec& link) const;
   // The Free root joint's name: the root link's joint.name if given, else

@@ -140,6 +140,12 @@ BenchConfig parse_config(const std::vector<std::string>& args) {
   }
   if (config.threads.empty() || config.precisions.empty())
     throw UsageError("--threads and --precision need at least one entry");
+  for (std::size_t i = 0; i < config.threads.size(); ++i)
+    if (std::count(config.threads.begin(), config.threads.begin() + i, config.threads[i]))
+      throw UsageError("--threads lists " + std::to_string(config.threads[i]) + " twice");
+  for (std::size_t i = 0; i < config.precisions.size(); ++i)
+    if (std::count(config.precisions.begin(), config.precisions.begin() + i, config.precisions[i]))
+      throw UsageError(std::string("--precision lists ") + precision_name(config.precisions[i]) + " twice");
   config.mujoco = !parsed.has("--no-mujoco");
   config.floating_base = config.default_model || parsed.has("--floating-base");
   config.ground = parsed.has("--ground");
@@ -235,6 +241,7 @@ struct BenchReport {
   std::string model_path;  // the URDF (a scene file's model)
   std::string machine;
   bool floating_base = false, contacts = false;
+  bool standing = false;  // a floating base on a ground plane: the standing statistics mean something
   double dt = 0.0;
   int nv = 0, driven_dofs = 0;
   std::vector<Row> rows;
@@ -283,10 +290,16 @@ void print_text(const BenchReport& r, std::ostream& out) {
       << " of " << r.nv << " DOFs holding their targets, dt " << r.dt << " s\n"
       << "machine: " << r.machine << "\n"
       << "build: " << build_description() << "\n"
-      << "timing: median of " << c.repeats << " repeats of " << c.steps << " steps of " << c.copies
-      << " copies";
-  if (c.mujoco) out << " (MuJoCo: " << c.mujoco_steps << " steps of one mjData per thread)";
-  out << ", after a warm-up\n\n";
+      << "timing: median of " << count_of(c.repeats, "repeat") << " of " << count_of(c.steps, "step") << " of "
+      << c.copies << (c.copies == 1 ? " copy" : " copies");
+  if (c.mujoco) out << " (MuJoCo: " << count_of(c.mujoco_steps, "step") << " of one mjData per thread)";
+  out << ", after a warm-up\n";
+  const int most = *std::max_element(c.threads.begin(), c.threads.end());
+  const int hardware = static_cast<int>(std::thread::hardware_concurrency());
+  if (hardware > 0 && most > hardware)
+    out << "note: " << count_of(most, "thread") << " on " << count_of(hardware, "hardware thread")
+        << ": the per-core columns divide by the threads asked for, not the cores used\n";
+  out << "\n";
 
   std::vector<std::vector<std::string>> table = {
       {"model", "engine", "precision", "threads", "copies", "env-steps/s", "env-steps/s/core", "ns/env-step/core"}};
@@ -325,16 +338,18 @@ void print_text(const BenchReport& r, std::ostream& out) {
     separator = ", ";
   }
   if (r.mujoco_status.empty()) out << ", MuJoCo " << r.mujoco_pose_error;
-  if (r.config.ground) {
+  if (r.standing) {
     out << "\nstanding (mean root height, mean pushing contacts per copy):";
-    for (const PrecisionResult& p : r.precisions)
-      out << " lockstep " << precision_name(p.precision) << " " << fixed(p.mean_height, 4) << " m, "
-          << fixed(p.mean_contacts, 2) << ";";
+    separator = " ";
+    for (const PrecisionResult& p : r.precisions) {
+      out << separator << "lockstep " << precision_name(p.precision) << " " << fixed(p.mean_height, 4) << " m, "
+          << fixed(p.mean_contacts, 2);
+      separator = "; ";
+    }
     if (r.mujoco_status.empty())
-      out << " MuJoCo " << fixed(r.mujoco_height, 4) << " m, " << fixed(r.mujoco_contacts, 2);
+      out << separator << "MuJoCo " << fixed(r.mujoco_height, 4) << " m, " << fixed(r.mujoco_contacts, 2);
   }
-  out << "\ntime by phase (one profiled run, " << c.threads.front() << (c.threads.front() == 1 ? " thread" : " threads")
-      << "):";
+  out << "\ntime by phase (one profiled run, " << count_of(c.threads.front(), "thread") << "):";
   for (const PrecisionResult& p : r.precisions) {
     const StepProfile& t = p.profile;
     const double total = t.total() > 0 ? t.total() : 1.0;
@@ -355,6 +370,12 @@ std::string comparisons_json(const std::vector<Comparison>& list) {
     s += std::string(i ? ", " : "") + "{\"precision\": " + json::quote(list[i].precision) +
          ", \"threads\": " + std::to_string(list[i].threads) + ", \"value\": " + json::number(list[i].value) + "}";
   return s + "]";
+}
+
+// With --ground: the mean root height and pushing contacts per copy after the run.
+std::string standing_json(double height, double contacts) {
+  return "{\"mean_root_height\": " + json::number(height) + ", \"mean_pushing_contacts\": " + json::number(contacts) +
+         "}";
 }
 
 void print_json(const BenchReport& r, std::ostream& out) {
@@ -379,7 +400,9 @@ void print_json(const BenchReport& r, std::ostream& out) {
     out << "{\"ran\": false, \"reason\": " << json::quote(r.mujoco_status) << "}";
   } else {
     out << "{\"ran\": true, \"version\": " << json::quote(r.mujoco_version)
-        << ", \"ratio_per_core\": " << comparisons_json(mujoco_ratios(r)) << ", \"notes\": [";
+        << ", \"ratio_per_core\": " << comparisons_json(mujoco_ratios(r));
+    if (r.standing) out << ", \"standing\": " << standing_json(r.mujoco_height, r.mujoco_contacts);
+    out << ", \"notes\": [";
     for (std::size_t i = 0; i < r.mujoco_notes.size(); ++i) out << (i ? ", " : "") << json::quote(r.mujoco_notes[i]);
     out << "]}";
   }
@@ -388,10 +411,13 @@ void print_json(const BenchReport& r, std::ostream& out) {
     const PrecisionResult& p = r.precisions[i];
     out << (i ? ", " : "") << "{\"precision\": " << json::quote(precision_name(p.precision))
         << ", \"bytes_per_copy\": " << p.bytes_per_copy << ", \"faults\": " << p.faults
-        << ", \"max_pose_error\": " << json::number(p.max_pose_error) << ", \"phase_seconds\": {\"dynamics\": "
-        << json::number(p.profile.dynamics) << ", \"contact_detection\": " << json::number(p.profile.contact_detection)
+        << ", \"max_pose_error\": " << json::number(p.max_pose_error)
+        << ", \"phase_seconds\": {\"dynamics\": " << json::number(p.profile.dynamics)
+        << ", \"contact_detection\": " << json::number(p.profile.contact_detection)
         << ", \"constraint_solve\": " << json::number(p.profile.constraint_solve)
-        << ", \"integration\": " << json::number(p.profile.integration) << "}}";
+        << ", \"integration\": " << json::number(p.profile.integration) << "}";
+    if (r.standing) out << ", \"standing\": " << standing_json(p.mean_height, p.mean_contacts);
+    out << "}";
   }
   out << "],\n  \"plan\": " << json::quote(r.plan) << "\n}\n";
 }
@@ -442,6 +468,7 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
   for (Precision precision : config.precisions)
     report.precisions.push_back(time_lockstep(scene, config, precision, report.rows, report.plan));
   report.contacts = report.precisions.front().contacts;
+  report.standing = report.contacts && scene.env.step.contacts.ground && scene.floating_base;
 
   const std::optional<std::string> unlike = mujoco_difference(scene);
   if (!config.mujoco) {

@@ -27,33 +27,63 @@ namespace {
 constexpr const char* kDefaultModel = "quadruped.urdf";
 constexpr const char* kDefaultState = "quadruped_state.json";
 
-constexpr const char* kUsage =
-    "usage: lockstep <command> [arguments]\n"
-    "\n"
-    "commands:\n"
-    "  info MODEL.urdf [--floating-base] [--json] [--strict]\n"
-    "      the articulation tree: bodies, frames, DOFs, mass, loading warnings\n"
-    "  dynamics MODEL.urdf --state STATE.json [--floating-base] [--precision float|double]\n"
-    "      mass matrix, bias and gravity forces, forward dynamics, energies and\n"
-    "      link poses for one state, as JSON\n"
-    "  bench [MODEL.urdf|SCENE.json] [--envs N] [--threads 1,2] [--precision float,double]\n"
-    "        [--steps S] [--repeats R] [--dt DT] [--solver pgs|tgs] [--iterations N]\n"
-    "        [--mujoco-steps M] [--no-mujoco]\n"
-    "        [--floating-base] [--ground] [--no-contacts] [--json]\n"
-    "      env-steps per second of the simulation step, copies holding their initial\n"
-    "      pose (default: anymal_b, floating), time by phase, MuJoCo beside it if built in\n"
-    "  rollout MODEL.urdf|SCENE.json --out FILE.h5 [--envs N] [--steps T]\n"
-    "          [--policy zero|hold|sine|random] [--threads K] [--precision float|double]\n"
-    "          [--seed S] [--episode-steps E] [--floating-base] [--ground] [--no-contacts]\n"
-    "          [--compression 0-9] [--flush-seconds S]\n"
-    "      N copies under a built-in policy for T env steps, written to a rollout file\n"
-    "  demo\n"
-    "      info and dynamics on the bundled model (also what no command does)\n"
-    "  help\n"
-    "\n"
+// Each command's lines of the usage, in the order `lockstep help` lists them.
+struct CommandUsage {
+  const char* name;
+  const char* lines;
+};
+constexpr CommandUsage kCommands[] = {
+    {"info",
+     "  info MODEL.urdf [--floating-base] [--json] [--strict]\n"
+     "      the articulation tree: bodies, frames, DOFs, mass, loading warnings\n"},
+    {"dynamics",
+     "  dynamics MODEL.urdf --state STATE.json [--floating-base] [--precision float|double]\n"
+     "      mass matrix, bias and gravity forces, forward dynamics, energies and\n"
+     "      link poses for one state, as JSON\n"},
+    {"bench",
+     "  bench [MODEL.urdf|SCENE.json] [--envs N] [--threads 1,2] [--precision float,double]\n"
+     "        [--steps S] [--repeats R] [--dt DT] [--solver pgs|tgs] [--iterations N]\n"
+     "        [--mujoco-steps M] [--no-mujoco]\n"
+     "        [--floating-base] [--ground] [--no-contacts] [--json]\n"
+     "      env-steps per second of the simulation step, copies holding their initial\n"
+     "      pose (default: anymal_b, floating), time by phase, MuJoCo beside it if built in\n"},
+    {"rollout",
+     "  rollout MODEL.urdf|SCENE.json --out FILE.h5 [--envs N] [--steps T]\n"
+     "          [--policy zero|hold|sine|random] [--threads K] [--precision float|double]\n"
+     "          [--seed S] [--episode-steps E] [--floating-base] [--ground] [--no-contacts]\n"
+     "          [--compression 0-9] [--flush-seconds S]\n"
+     "      N copies under a built-in policy for T env steps, written to a rollout file\n"},
+    {"demo",
+     "  demo\n"
+     "      info and dynamics on the bundled model (also what no command does)\n"},
+    {"help",
+     "  help [COMMAND]\n"
+     "      this text, or one command's (also COMMAND --help)\n"},
+};
+
+constexpr const char* kExitCodes =
     "Exit codes: 0 ok, 1 internal error, 2 bad arguments or input, 3 CPU lacks\n"
     "required instructions, 4 the output file cannot be written, 130 a rollout\n"
     "interrupted (its file keeps the steps taken). Formats: docs/cli.md.\n";
+
+const CommandUsage* find_command(const std::string& name) {
+  for (const CommandUsage& c : kCommands)
+    if (name == c.name) return &c;
+  return nullptr;
+}
+
+// The whole usage, or one command's.
+std::string usage(const CommandUsage* only = nullptr) {
+  std::string text = "usage: lockstep <command> [arguments]\n\n";
+  if (only) return text + only->lines + "\n(lockstep help: every command; docs/cli.md: formats, exit codes)\n";
+  text += "commands:\n";
+  for (const CommandUsage& c : kCommands) text += c.lines;
+  return text + "\n" + kExitCodes;
+}
+
+bool asks_for_help(const std::vector<std::string>& args) {
+  return std::any_of(args.begin(), args.end(), [](const std::string& a) { return a == "--help" || a == "-h"; });
+}
 
 }  // namespace
 
@@ -75,10 +105,12 @@ ParsedArgs parse_args(const std::vector<std::string>& args, const std::vector<st
   ParsedArgs parsed;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& arg = args[i];
-    if (arg.rfind("--", 0) != 0 || arg == "--") {
+    if (arg.size() < 2 || arg[0] != '-') {
       parsed.positional.push_back(arg);
       continue;
     }
+    if (arg == "--") throw UsageError("unexpected \"--\": options and files may come in any order");
+    if (arg[1] != '-') throw UsageError("unknown option " + arg + " (options start with --)");
     const std::size_t eq = arg.find('=');
     const std::string name = arg.substr(0, eq);
     if (contains(flags, name)) {
@@ -88,7 +120,7 @@ ParsedArgs parse_args(const std::vector<std::string>& args, const std::vector<st
       std::string value;
       if (eq != std::string::npos) value = arg.substr(eq + 1);
       else if (i + 1 < args.size()) value = args[++i];
-      else throw UsageError("option " + name + " needs a value");
+      if (value.empty()) throw UsageError("option " + name + " needs a value");
       if (parsed.value(name)) throw UsageError("option " + name + " given twice");
       parsed.options.emplace_back(name, value);
     } else {
@@ -112,7 +144,10 @@ double parse_number(const std::string& option, const std::string& text) {
 
 long parse_count(const std::string& option, const std::string& text, long minimum, double maximum) {
   const double x = parse_number(option, text);
-  if (x < static_cast<double>(minimum) || x != std::floor(x) || x > maximum)
+  if (x > maximum && x == std::floor(x))
+    throw UsageError(option + " must be at most " + std::to_string(static_cast<long long>(maximum)) + ", not \"" +
+                     text + "\"");
+  if (x < static_cast<double>(minimum) || x != std::floor(x))
     throw UsageError(option + " expects a whole number >= " + std::to_string(minimum) + ", not \"" + text + "\"");
   return static_cast<long>(x);
 }
@@ -174,19 +209,29 @@ int main(int argc, char** argv, std::ostream& out, std::ostream& err) {
   std::vector<std::string> args(argv + std::min(argc, 1), argv + argc);
   const std::string command = args.empty() ? "demo" : args.front();
   if (!args.empty()) args.erase(args.begin());
+  const CommandUsage* known = find_command(command);
   try {
+    if (known && known->name != std::string("help") && asks_for_help(args)) {
+      out << usage(known);
+      return kExitOk;
+    }
     if (command == "info") return run_info(args, out);
     if (command == "dynamics") return run_dynamics(args, out);
     if (command == "bench") return run_bench(args, out);
     if (command == "rollout") return run_rollout(args, out);
     if (command == "demo") return run_demo(args, out);
     if (command == "help" || command == "--help" || command == "-h") {
-      out << kUsage;
+      if (args.size() > 1) throw UsageError("help takes at most one command");
+      const CommandUsage* about = args.empty() ? nullptr : find_command(args.front());
+      if (!args.empty() && !about) throw UsageError("no command \"" + args.front() + "\"");
+      out << usage(about);
       return kExitOk;
     }
+    known = nullptr;
     throw UsageError("unknown command \"" + command + "\"");
   } catch (const UsageError& e) {
-    err << "lockstep: " << e.what() << "\n\n" << kUsage;
+    err << "lockstep" << (known ? std::string(" ") + known->name : std::string()) << ": " << e.what() << "\n\n"
+        << usage(known && known->name != std::string("help") ? known : nullptr);
     return kExitBadInput;
   } catch (const ModelError& e) {
     err << "lockstep: " << e.what() << "\n";

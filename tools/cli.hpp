@@ -53,6 +53,11 @@ double parse_number(const std::string& option, const std::string& text);  // fin
 long parse_count(const std::string& option, const std::string& text, long minimum = 1, double maximum = 1e9);
 Precision parse_precision(const std::string& text);  // float or double
 
+// "1 thread", "2 threads": a count and its noun, plural past one.
+inline std::string count_of(long n, const std::string& noun) {
+  return std::to_string(n) + " " + noun + (n == 1 ? "" : "s");
+}
+
 // Loads a URDF; errors (missing file, invalid model, a warning under
 // `strict`) propagate as exceptions naming the file.
 LoadedModel load_model(const std::string& path, bool floating_base, bool strict);

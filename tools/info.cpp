@@ -66,7 +66,8 @@ void print_info_text(const LoadedModel& loaded, std::ostream& out) {
   const Model& m = loaded.model;
   out << "model: " << loaded.path << (loaded.floating_base ? " (floating base)" : " (fixed base)") << "\n";
   out << "bodies " << m.nbody << ", nq " << m.nq << ", nv (DOFs) " << m.nv << ", frames " << m.frame_name.size()
-      << ", total mass " << mass_text(m.total_mass()) << " kg\n";
+      << ", total mass " << mass_text(m.total_mass()) << " kg"
+      << (loaded.floating_base ? "" : " (the moving bodies; links welded to the world do not count)") << "\n";
 
   out << "\narticulations (" << m.articulations.size() << "):\n";
   Table articulations({"index", "name", "base", "bodies", "root link"});

@@ -14,6 +14,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <iomanip>
 #include <optional>
 #include <ostream>
@@ -150,6 +151,12 @@ Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, b
 int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   const RolloutConfig config = parse_config(args);
   Scene scene = load_cli_scene(config.model, config.floating_base, config.ground, config.no_contacts);
+  std::error_code missing;  // equivalent() is false, with an error, for a file that does not exist
+  for (const std::string& input : {scene.source, scene.model_path})
+    if (std::filesystem::equivalent(config.out, input, missing))
+      throw UsageError("--out " + config.out + " is the input file " + input + "; the rollout would overwrite it");
+  if (std::filesystem::is_regular_file(config.out, missing))
+    std::fprintf(stderr, "lockstep rollout: replacing %s\n", config.out.c_str());
   if (config.precision) scene.env.step.precision = *config.precision;
   if (config.seed) scene.env.seed = *config.seed;
   if (config.episode_steps) scene.env.episode_steps = *config.episode_steps;
@@ -195,10 +202,11 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
                   {"waiting_seconds", recorder.seconds_waiting()},
                   {"env_steps_per_s", env_steps / wall}});
   out << std::fixed << std::setprecision(2) << "wrote " << config.out << ": " << config.envs << " envs x "
-      << config.steps << " steps (" << scene.env.control_steps << " simulator steps each) in " << wall << " s, "
-      << std::setprecision(3) << env_steps / wall / 1e6 << " M env-steps/s (" << threads << " threads, "
-      << precision_name(scene.env.step.precision) << "), " << faults_seen << " faulted env-steps, " << episodes_ended
-      << " episodes ended; recording " << std::setprecision(1) << 100.0 * recorder.seconds_recording() / stepping
+      << count_of(config.steps, "step") << " (" << count_of(scene.env.control_steps, "simulator step") << " each) in "
+      << wall << " s, " << std::setprecision(3) << env_steps / wall / 1e6 << " M env-steps/s ("
+      << count_of(threads, "thread") << ", " << precision_name(scene.env.step.precision) << "), "
+      << count_of(faults_seen, "faulted env-step") << ", " << count_of(episodes_ended, "episode")
+      << " ended; recording " << std::setprecision(1) << 100.0 * recorder.seconds_recording() / stepping
       << " % of the stepping time, of which waiting for the disk " << 100.0 * recorder.seconds_waiting() / stepping
       << " %\n";
   return kExitOk;
