@@ -143,8 +143,12 @@ class Parser {
       return pos_ - first;
     };
     if (peek() == '-') ++pos_;
-    if (peek() == '0') ++pos_;
-    else if (digits() == 0) fail("invalid number");
+    if (peek() == '0') {
+      ++pos_;
+      if (peek() >= '0' && peek() <= '9') fail("invalid number: JSON numbers have no leading zeros");
+    } else if (digits() == 0) {
+      fail("invalid number");
+    }
     if (peek() == '.') {
       ++pos_;
       if (digits() == 0) fail("invalid number: digits expected after '.'");

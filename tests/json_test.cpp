@@ -52,6 +52,14 @@ TEST(CliJson, RejectsMalformedInputWithLineAndColumn) {
   } catch (const ParseError& e) {
     EXPECT_NE(std::string(e.what()).find("duplicate key \"q\""), std::string::npos) << e.what();
   }
+  try {
+    parse(R"({"q": {"knee": 01}})", "s.json");
+    FAIL() << "no error";
+  } catch (const ParseError& e) {
+    EXPECT_NE(std::string(e.what()).find("s.json:1:17: invalid number: JSON numbers have no leading zeros"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(CliJson, RejectsRunawayNesting) {
