@@ -6,6 +6,7 @@
 #pragma once
 
 #include <stdexcept>
+#include <string>
 #include <type_traits>
 
 namespace lockstep {
@@ -15,6 +16,14 @@ inline void require(bool ok, Message&& message) {
   if (ok) return;
   if constexpr (std::is_invocable_v<Message>) throw std::invalid_argument(message());
   else throw std::invalid_argument(message);
+}
+
+// A copy index in [0, copies), or std::out_of_range naming the class and
+// function asked: "VecEnv::fault: copy index 9 outside [0, 4)".
+inline void require_copy_index(int copy, int copies, const char* type, const char* function) {
+  if (copy >= 0 && copy < copies) return;
+  throw std::out_of_range(std::string(type) + "::" + function + ": copy index " + std::to_string(copy) +
+                          " outside [0, " + std::to_string(copies) + ")");
 }
 
 }  // namespace lockstep

@@ -294,9 +294,8 @@ void Simulator::step(int n) {
   }
 }
 
-void Simulator::check_copy(int copy) const {
-  if (copy < 0 || copy >= copies())
-    throw std::out_of_range("copy index " + std::to_string(copy) + " outside [0, " + std::to_string(copies()) + ")");
+void Simulator::check_copy(int copy, const char* function) const {
+  require_copy_index(copy, copies(), "Simulator", function);
 }
 
 template <class T>
@@ -327,12 +326,12 @@ decltype(auto) Simulator::visit(F&& f) const {
 }
 
 Eigen::VectorXd Simulator::q(int copy) const {
-  check_copy(copy);
+  check_copy(copy, "q");
   return visit([&](auto& b) { return b.state.q.get(copy); });
 }
 
 Eigen::VectorXd Simulator::v(int copy) const {
-  check_copy(copy);
+  check_copy(copy, "v");
   return visit([&](auto& b) { return b.state.v.get(copy); });
 }
 
@@ -361,7 +360,7 @@ void Simulator::check_velocity(const Eigen::VectorXd& v, const char* what) const
 }
 
 void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::VectorXd& v) {
-  check_copy(copy);
+  check_copy(copy, "set_state");
   Eigen::VectorXd& qn = configuration_;
   checked_configuration(q, "set_state q", qn);
   check_velocity(v, "set_state v");
@@ -389,7 +388,7 @@ auto copy_parameters(Batch& b) {
 }  // namespace
 
 CopySnapshot Simulator::snapshot(int copy) const {
-  check_copy(copy);
+  check_copy(copy, "snapshot");
   return visit([&](auto& b) {
     int size = 0;
     for (const auto* a : copy_parameters(b)) size += a->size();
@@ -405,7 +404,7 @@ CopySnapshot Simulator::snapshot(int copy) const {
 }
 
 void Simulator::restore(int copy, const CopySnapshot& s) {
-  check_copy(copy);
+  check_copy(copy, "restore");
   visit([&](auto& b) {
     require(s.q.size() == model_->nq && s.v.size() == model_->nv && s.joint_impulse.size() == b.impulse.size() &&
                 s.contact_id.size() == b.contact_id.size() && s.contact_impulse.size() == b.contact_impulse.size(),
@@ -450,13 +449,13 @@ void Simulator::set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v
 }
 
 void Simulator::set_torque(int copy, const Eigen::VectorXd& tau) {
-  check_copy(copy);
+  check_copy(copy, "set_torque");
   check_velocity(tau, "set_torque");
   visit([&](auto& b) { b.state.tau.set(copy, tau); });
 }
 
 void Simulator::set_drive_target(int copy, const Eigen::VectorXd& q_target, const Eigen::VectorXd& v_target) {
-  check_copy(copy);
+  check_copy(copy, "set_drive_target");
   require(q_target.size() == model_->nq, [&] {
     return "set_drive_target: q_target expects " + std::to_string(model_->nq) + " values, got " +
            std::to_string(q_target.size());
@@ -469,7 +468,7 @@ void Simulator::set_drive_target(int copy, const Eigen::VectorXd& q_target, cons
 }
 
 void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen::VectorXd& kd) {
-  check_copy(copy);
+  check_copy(copy, "set_drive_gains");
   check_velocity(kp, "set_drive_gains kp");
   check_velocity(kd, "set_drive_gains kd");
   for (int k = 0; k < model_->nv; ++k) {
@@ -510,7 +509,7 @@ void Simulator::check_free_of_floating_bases(const Eigen::VectorXd& values, cons
 }
 
 void Simulator::set_joint_damping(int copy, const Eigen::VectorXd& damping) {
-  check_copy(copy);
+  check_copy(copy, "set_joint_damping");
   check_per_dof(damping, "set_joint_damping");
   check_free_of_floating_bases(damping, "set_joint_damping");
   visit([&](auto& b) { b.joint_damping.set(copy, damping); });
@@ -518,21 +517,21 @@ void Simulator::set_joint_damping(int copy, const Eigen::VectorXd& damping) {
 }
 
 void Simulator::set_armature(int copy, const Eigen::VectorXd& armature) {
-  check_copy(copy);
+  check_copy(copy, "set_armature");
   check_per_dof(armature, "set_armature");
   check_free_of_floating_bases(armature, "set_armature");
   visit([&](auto& b) { b.armature.set(copy, armature); });
 }
 
 void Simulator::set_joint_friction(int copy, const Eigen::VectorXd& friction) {
-  check_copy(copy);
+  check_copy(copy, "set_joint_friction");
   check_per_dof(friction, "set_joint_friction");
   visit([&](auto& b) { b.joint_friction.set(copy, friction); });
 }
 
 void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com,
                                  const Eigen::Matrix3d& inertia) {
-  check_copy(copy);
+  check_copy(copy, "set_body_inertia");
   if (body < 0 || body >= model_->nbody)
     throw std::out_of_range("set_body_inertia: body index " + std::to_string(body) + " outside [0, " +
                             std::to_string(model_->nbody) + ")");
@@ -555,7 +554,7 @@ void Simulator::note_own_inertia(int copy, bool own) {
 }
 
 void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench) {
-  check_copy(copy);
+  check_copy(copy, "set_link_wrench");
   if (body < 0 || body >= model_->nbody)
     throw std::out_of_range("set_link_wrench: body index " + std::to_string(body) + " outside [0, " +
                             std::to_string(model_->nbody) + ")");
@@ -570,12 +569,12 @@ void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 
 }
 
 void Simulator::set_gravity(int copy, const Eigen::Vector3d& gravity) {
-  check_copy(copy);
+  check_copy(copy, "set_gravity");
   visit([&](auto& b) { b.state.gravity.set(copy, gravity); });
 }
 
 Fault Simulator::fault(int copy) const {
-  check_copy(copy);
+  check_copy(copy, "fault");
   return visit([&](auto& b) { return static_cast<Fault>(static_cast<int>(b.fault.at(copy, 0))); });
 }
 
@@ -586,12 +585,12 @@ int Simulator::fault_count() const {
 }
 
 void Simulator::clear_fault(int copy) {
-  check_copy(copy);
+  check_copy(copy, "clear_fault");
   visit([&](auto& b) { b.fault.at(copy, 0) = 0; });
 }
 
 void Simulator::reset(int copy) {
-  check_copy(copy);
+  check_copy(copy, "reset");
   visit([&](auto& b) {
     b.state.q.set_from(copy, b.initial_q);
     b.state.v.set_from(copy, b.initial_v);
@@ -603,7 +602,7 @@ void Simulator::reset(int copy) {
 }
 
 AppliedTorque Simulator::applied_torque(int copy) const {
-  check_copy(copy);
+  check_copy(copy, "applied_torque");
   if (!options_.record_applied_torque)
     throw std::logic_error("Simulator::applied_torque needs StepOptions::record_applied_torque");
   return visit([&](auto& b) {
@@ -613,7 +612,7 @@ AppliedTorque Simulator::applied_torque(int copy) const {
 }
 
 void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction) {
-  check_copy(copy);
+  check_copy(copy, "set_ground");
   require(options_.contacts.ground && contacts_run(),
           "set_ground: the scene has no ground (ContactSettings::ground) or its contacts are off");
   require(std::isfinite(height), "set_ground: height must be finite");
@@ -628,7 +627,6 @@ void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& norma
 
 template <class F>
 void Simulator::visit_contacts(int copy, F&& f) const {
-  check_copy(copy);
   if (!contacts_run() || pairs_.pairs.empty()) return;
   const double h = options_.dt / options_.substeps;
   visit([&](auto& b) {
@@ -663,12 +661,14 @@ void Simulator::visit_contacts(int copy, F&& f) const {
 }
 
 std::vector<Contact> Simulator::contacts(int copy) const {
+  check_copy(copy, "contacts");
   std::vector<Contact> out;
   visit_contacts(copy, [&](const Contact& c) { out.push_back(c); });
   return out;
 }
 
 void Simulator::body_contact_forces(int copy, double* forces) const {
+  check_copy(copy, "body_contact_forces");
   std::fill(forces, forces + 3 * model_->nbody, 0.0);
   visit_contacts(copy, [&](const Contact& c) {
     for (int i = 0; i < 3; ++i) {
@@ -679,6 +679,7 @@ void Simulator::body_contact_forces(int copy, double* forces) const {
 }
 
 Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::body_contact_wrenches(int copy) const {
+  check_copy(copy, "body_contact_wrenches");
   Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, model_->nbody);
   visit_contacts(copy, [&](const Contact& c) {
     const Eigen::Vector3d torque = c.point.cross(c.force) + c.torsion * c.normal;
@@ -689,7 +690,7 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::body_contact_wrenches(int co
 }
 
 ContactOverflow Simulator::contact_overflow(int copy) const {
-  check_copy(copy);
+  check_copy(copy, "contact_overflow");
   if (!contacts_run() || pairs_.pairs.empty()) return {};
   return visit([&](auto& b) {
     return ContactOverflow{static_cast<int>(b.contact_dropped.at(copy, 0)),
@@ -698,7 +699,7 @@ ContactOverflow Simulator::contact_overflow(int copy) const {
 }
 
 double Simulator::energy(int copy) const {
-  check_copy(copy);
+  check_copy(copy, "energy");
   // One copy's state, inertial parameters and gravity, in double.
   const BatchDynamics<double> dynamics(*model_);
   BatchState<double> one = dynamics.make_state(1);

@@ -3,8 +3,8 @@
 // bit for bit the same whatever the thread count, batch size or position of
 // a copy in the batch.
 //
-//   lockstep::Simulator sim(model, 4096, options);
-//   sim.set_drive_gains(kp, kd);                 // every copy
+//   lockstep::Simulator sim(model, 4096, options, dofs);  // dofs: the drive gains of every copy
+//   sim.set_drive_gains(copy, kp, kd);                     // one copy's own gains
 //   sim.set_drive_target(copy, q_target, v_target);
 //   sim.step();
 //
@@ -233,7 +233,7 @@ class Simulator {
   bool contacts_run() const;
   StepPlan step_plan() const;
   std::string rows_summary() const;
-  void check_copy(int copy) const;
+  void check_copy(int copy, const char* function) const;  // throws std::out_of_range naming the function
   void check_velocity(const Eigen::VectorXd& v, const char* what) const;
   void check_per_dof(const Eigen::VectorXd& values, const char* what) const;  // nv finite values >= 0
   void check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const;
@@ -245,7 +245,8 @@ class Simulator {
   void checked_configuration(const Eigen::VectorXd& q, const char* what, Eigen::VectorXd& out) const;
   template <class F>
   decltype(auto) visit(F&& f) const;
-  // f(const Contact&) for each contact of the copy's last step.
+  // f(const Contact&) for each contact of the copy's last step (the caller
+  // checks the copy).
   template <class F>
   void visit_contacts(int copy, F&& f) const;
 

@@ -1,5 +1,7 @@
 #include "batch/vec_env.hpp"
 
+#include "batch/require.hpp"
+
 #include <Eigen/Geometry>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -61,12 +63,12 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options)
     const int root = model.articulations.front().root_frame;
     if (model.frame_body[root] < 0) fixed_base_pose_ = model.frame_placement[root];
   }
-  if (options_.action_mode == ActionMode::PositionTarget) {
-    bool any_gain = false;
-    for (int k : action_dofs_) any_gain |= options_.dofs[k].drive_stiffness > 0;
-    require(action_dofs_.empty() || any_gain,
-            "position_target actions need drive gains (DofSettings::drive_stiffness) on the actuated DOFs; none has any");
-  }
+  if (options_.action_mode == ActionMode::PositionTarget)
+    for (int k : action_dofs_)  // an action column without a gain would be ignored
+      require(options_.dofs[k].drive_stiffness > 0,
+              "position_target actions need a drive gain (DofSettings::drive_stiffness > 0) on every actuated DOF; " +
+                  model.dof_name[k] + " (DOF " + std::to_string(k) + ") has " +
+                  std::to_string(options_.dofs[k].drive_stiffness));
   const bool contacts = sim_.plan()[static_cast<int>(Stage::Contacts)].runs;
   observations_ = Observations(copies, model, contacts);
   terminal_ = Observations(copies, model, contacts);
@@ -88,10 +90,7 @@ void VecEnv::reset() {
 }
 
 void VecEnv::reset(const std::vector<int>& which) {
-  for (int c : which)
-    if (c < 0 || c >= copies())
-      throw std::out_of_range("VecEnv::reset: copy " + std::to_string(c) + " outside [0, " +
-                              std::to_string(copies()) + ")");
+  for (int c : which) require_copy_index(c, copies(), "VecEnv", "reset");
   restart(which);
 }
 
@@ -248,6 +247,25 @@ void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
   });
 }
 
+Eigen::VectorXd VecEnv::position_action(const Eigen::VectorXd& q) const {
+  const Model& m = model();
+  if (q.size() != m.nq)
+    throw std::invalid_argument("VecEnv::position_action: q must have " + std::to_string(m.nq) + " values, got " +
+                                std::to_string(q.size()));
+  Eigen::VectorXd action(action_size());
+  for (int a = 0; a < action_size();) {
+    const int body = m.dof_body[action_dofs_[a]], qo = m.body_q_offset[body];
+    if (m.body_joint[body] != JointType::Spherical) {
+      action[a++] = q[qo];
+      continue;
+    }
+    const Eigen::AngleAxisd turn(Eigen::Quaterniond(q[qo], q[qo + 1], q[qo + 2], q[qo + 3]).normalized());
+    action.segment<3>(a) = turn.angle() * turn.axis();
+    a += 3;
+  }
+  return action;
+}
+
 void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
   if (!ready_) throw std::logic_error("VecEnv::step: call reset() first");
   if (actions.rows() != copies() || actions.cols() != action_size())
@@ -263,7 +281,9 @@ void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
   if (reward_) {
     reward_(observations_, actions, reward_out_, terminated_);
     if (reward_out_.size() != copies() || static_cast<int>(terminated_.size()) != copies())
-      throw std::logic_error("VecEnv::step: the reward function resized its outputs");
+      throw std::logic_error("VecEnv::step: the reward function resized its outputs: reward has " +
+                             std::to_string(reward_out_.size()) + " entries and terminated " +
+                             std::to_string(terminated_.size()) + ", both must stay " + std::to_string(copies()));
   }
   visit_batch([&](const auto& b) {
     for (int c = 0; c < copies(); ++c) last_fault_[c] = static_cast<Fault>(static_cast<int>(b.fault.at(c, 0)));
@@ -387,11 +407,18 @@ void VecEnv::observe(const std::vector<int>* which, Observations& o) const {
   });
 }
 
+Fault VecEnv::fault(int copy) const {
+  require_copy_index(copy, copies(), "VecEnv", "fault");
+  return last_fault_[copy];
+}
+
 EnvCopyState VecEnv::state(int copy) const {
-  return {sim_.snapshot(copy), episode_step_.at(copy), reset_count_.at(copy)};
+  require_copy_index(copy, copies(), "VecEnv", "state");
+  return {sim_.snapshot(copy), episode_step_[copy], reset_count_[copy]};
 }
 
 void VecEnv::set_state(int copy, const EnvCopyState& s) {
+  require_copy_index(copy, copies(), "VecEnv", "set_state");
   sim_.restore(copy, s.simulator);
   episode_step_.at(copy) = s.episode_step;
   reset_count_.at(copy) = s.reset_count;

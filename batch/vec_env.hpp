@@ -110,6 +110,11 @@ class VecEnv {
   int copies() const { return sim_.copies(); }
   int action_size() const { return static_cast<int>(action_dofs_.size()); }
   const std::vector<int>& action_dofs() const { return action_dofs_; }  // DOF of each action column
+  // The PositionTarget action row (action_size() values) whose targets are
+  // the configuration q (nq): each actuated joint's coordinate, a Spherical
+  // joint's quaternion as its rotation vector. E.g. the row that holds the
+  // initial pose: position_action(options().initial_q).
+  Eigen::VectorXd position_action(const Eigen::VectorXd& q) const;
   void set_reward(RewardFunction reward) { reward_ = std::move(reward); }
 
   // Restart copies: new randomisation draws and initial-state noise (their
@@ -136,7 +141,7 @@ class VecEnv {
   // also terminated, and reset with auto_reset); fault() gives the reason
   // seen in the last step until an explicit reset.
   const std::vector<std::uint8_t>& faulted() const { return faulted_; }
-  Fault fault(int copy) const { return last_fault_[copy]; }
+  Fault fault(int copy) const;
   const std::vector<int>& episode_step() const { return episode_step_; }
   const std::vector<std::uint32_t>& reset_count() const { return reset_count_; }
   std::int64_t steps() const { return steps_; }  // env steps since construction

@@ -6,6 +6,7 @@
 // own thread), reports through a pipe and ends with _exit().
 #include "io/rollout_file.hpp"
 #include "io/rollout_hdf5.hpp"
+#include "tests/test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -22,18 +23,6 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
-
-// Expects `statement` to throw `Error` with a message containing `piece`.
-#define EXPECT_THROW_WITH(statement, Error, piece)                                           \
-  do {                                                                                       \
-    try {                                                                                    \
-      statement;                                                                             \
-      ADD_FAILURE() << "no " #Error " from " #statement;                                     \
-    } catch (const Error& e) {                                                               \
-      EXPECT_NE(std::string(e.what()).find(piece), std::string::npos)                        \
-          << "message '" << e.what() << "' lacks '" << (piece) << "'";                       \
-    }                                                                                        \
-  } while (0)
 
 namespace lockstep {
 namespace {

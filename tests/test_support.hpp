@@ -32,6 +32,18 @@
     }                                                                              \
   } while (0)
 
+// Expects `statement` to throw `Error` with a message containing `piece`.
+#define EXPECT_THROW_WITH(statement, Error, piece)                                           \
+  do {                                                                                       \
+    try {                                                                                    \
+      statement;                                                                             \
+      ADD_FAILURE() << "no " #Error " from " #statement;                                     \
+    } catch (const Error& e) {                                                               \
+      EXPECT_NE(std::string(e.what()).find(piece), std::string::npos)                        \
+          << "message '" << e.what() << "' lacks '" << (piece) << "'";                       \
+    }                                                                                        \
+  } while (0)
+
 namespace lockstep::test {
 
 // A link on a joint named <name>_joint (no joint for a root), its joint frame

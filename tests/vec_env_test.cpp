@@ -318,6 +318,13 @@ TEST(VecEnv, TorqueAndPositionTargetActionsReachTheSimulator) {
     const int qi = anymal().body_q_offset[anymal().dof_body[target.action_dofs()[j]]];
     EXPECT_EQ(bp.target_q.at(1, qi), static_cast<float>(expected(1, j)));
   }
+  // position_action: the row that targets a configuration, here the drives' own
+  const Eigen::VectorXd hold = target.position_action(options.drive_target_q);
+  ASSERT_EQ(hold.size(), target.action_size());
+  for (int j = 0; j < target.action_size(); ++j)
+    EXPECT_EQ(hold[j], options.drive_target_q[anymal().body_q_offset[anymal().dof_body[target.action_dofs()[j]]]]);
+  EXPECT_EQ(hold[0], 0.25);
+  EXPECT_THROW(target.position_action(Eigen::VectorXd::Zero(3)), std::invalid_argument);
 }
 
 // A Spherical joint's three actions are a rotation vector: its drive
@@ -343,6 +350,8 @@ TEST(VecEnv, ASphericalJointTakesARotationVectorAsItsTarget) {
   EXPECT_NEAR(stored[1], target.x(), 1e-15);
   EXPECT_NEAR(stored[2], target.y(), 1e-15);
   EXPECT_NEAR(stored[3], target.z(), 1e-15);
+  const Eigen::Vector4d wxyz(target.w(), target.x(), target.y(), target.z());
+  EXPECT_LT((env.position_action(wxyz) - r).norm(), 1e-15) << "position_action inverts the rotation vector";
   const Eigen::RowVectorXd q = env.observations().q.row(0);
   const Eigen::Quaterniond reached(q[0], q[1], q[2], q[3]);
   EXPECT_LT(reached.angularDistance(target), 1e-6);  // no gravity torque on a ball at its COM
@@ -425,6 +434,16 @@ TEST(VecEnv, RejectsBadUseWithClearErrors) {
   bad = options;
   for (DofSettings& d : bad.dofs) d.drive_stiffness = 0;
   EXPECT_THROW(VecEnv(anymal(), 2, bad), std::invalid_argument);  // position targets without gains
+  bad = options;
+  const int knee = anymal().dof_index("LF_KFE");
+  bad.dofs[knee].drive_stiffness = 0;  // one action column would do nothing
+  EXPECT_THROW_WITH(VecEnv(anymal(), 2, bad), std::invalid_argument, "LF_KFE (DOF " + std::to_string(knee) + ") has 0");
+  EXPECT_THROW_WITH(env.fault(2), std::out_of_range, "VecEnv::fault: copy index 2 outside [0, 2)");
+  EXPECT_THROW_WITH(env.state(-1), std::out_of_range, "VecEnv::state: copy index -1 outside [0, 2)");
+  EXPECT_THROW_WITH(env.set_state(2, env.state(0)), std::out_of_range, "VecEnv::set_state: copy index 2");
+  EXPECT_THROW_WITH(env.reset(std::vector<int>{0, 5}), std::out_of_range, "VecEnv::reset: copy index 5");
+  EXPECT_THROW_WITH(env.simulator().q(-1), std::out_of_range, "Simulator::q: copy index -1 outside [0, 2)");
+  EXPECT_THROW_WITH(env.simulator().contacts(3), std::out_of_range, "Simulator::contacts: copy index 3");
 }
 
 }  // namespace
