@@ -13,6 +13,7 @@
 // structure-of-arrays storage directly (T = the chosen precision).
 #pragma once
 
+#include "batch/build_info.hpp"
 #include "batch/contact_pairs.hpp"
 #include "batch/step_options.hpp"
 #include "layout/batch_state.hpp"
@@ -130,7 +131,9 @@ class Simulator {
  public:
   // dofs: per-DOF joint effects; empty means default_dof_settings(model).
   // Throws std::invalid_argument naming the option or DOF that is wrong.
-  Simulator(const Model& model, int copies, const StepOptions& options = {}, std::vector<DofSettings> dofs = {});
+  // caller: leave it defaulted (batch/build_info.hpp).
+  Simulator(const Model& model, int copies, const StepOptions& options = {}, std::vector<DofSettings> dofs = {},
+            HeaderBuild caller = {});
   ~Simulator();
   Simulator(Simulator&&) noexcept;
   Simulator& operator=(Simulator&&) noexcept;
@@ -250,6 +253,7 @@ class Simulator {
   template <class F>
   void visit_contacts(int copy, F&& f) const;
 
+  HeaderBuildCheck header_check_;  // first: runs before any other member is built
   const Model* model_;
   StepOptions options_;
   std::vector<DofSettings> dofs_;

@@ -55,8 +55,10 @@ Observations::Observations(int copies, const Model& model, bool contacts)
       base_linear_velocity_base(copies, 3), base_angular_velocity_base(copies, 3), projected_gravity(copies, 3),
       applied_torque(copies, model.nv), contact_force(copies, contacts ? 3 * model.nbody : 0) {}
 
-VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options)
-    : options_(checked(model, std::move(options))), sim_(model, copies, options_.step, options_.dofs) {
+VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuild caller)
+    : header_check_(caller),
+      options_(checked(model, std::move(options))),
+      sim_(model, copies, options_.step, options_.dofs) {
   for (int k = 0; k < model.nv; ++k)
     if (!is_free_dof(model, k)) action_dofs_.push_back(k);
   if (model.nbody > 0 && model.body_joint[0] != JointType::Free) {

@@ -103,7 +103,7 @@ class VecEnv {
  public:
   // Throws std::invalid_argument naming the option that is wrong. Call
   // reset() before the first step().
-  VecEnv(const Model& model, int copies, VecEnvOptions options);
+  VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuild caller = {});  // caller: leave it defaulted
 
   const Model& model() const { return sim_.model(); }
   const VecEnvOptions& options() const { return options_; }
@@ -171,6 +171,7 @@ class VecEnv {
   template <class F>
   void visit_batch(F&& f) const;
 
+  HeaderBuildCheck header_check_;  // first: runs before any other member is built
   VecEnvOptions options_;
   Simulator sim_;
   std::vector<int> action_dofs_;

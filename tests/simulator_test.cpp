@@ -1,6 +1,7 @@
 // The simulation step's physics on small models with known answers, the
 // per-source applied torque against the equation of motion, the stage plan,
 // and the errors for bad options.
+#include "batch/vec_env.hpp"
 #include "tests/sim_support.hpp"
 
 #include <cmath>
@@ -374,6 +375,23 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
 // A rotational inertia is accepted down to an eigenvalue of -1e-12 of its
 // largest diagonal entry (round-off), including singular ones (a thin rod,
 // a point mass) and ones whose off-diagonal entries outweigh the diagonal.
+// Code compiled with other SIMD widths than the library (another -march)
+// is refused at construction, before anything is built.
+TEST(Simulator, CodeCompiledForOtherLanesIsRefused) {
+  const Model model = test::rod_chain({1.0}, 0.5);
+  const HeaderBuild own;
+  EXPECT_NO_THROW(Simulator(model, 4, {}, {}, own));
+  for (const HeaderBuild other : {HeaderBuild{own.float_lanes * 2, own.double_lanes * 2},
+                                  HeaderBuild{own.float_lanes, own.double_lanes + 1}}) {
+    EXPECT_THROW_WITH(Simulator(model, 4, {}, {}, other), std::logic_error,
+                      "compiled for SIMD lanes of " + std::to_string(other.float_lanes) + " float / " +
+                          std::to_string(other.double_lanes) + " double, but the library is lockstep ");
+    VecEnvOptions options;
+    options.dofs = default_dof_settings(model);
+    EXPECT_THROW_WITH(VecEnv(model, 4, options, other), std::logic_error, "with the library's flags");
+  }
+}
+
 TEST(Simulator, BadPerCopyInputsAreRejectedByNameAndChangeNothing) {
   const Model model = free_box(Eigen::Vector3d(0.1, 0.2, 0.3), 2.0);
   Simulator sim(model, 2, double_options(0.01));
