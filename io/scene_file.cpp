@@ -1,5 +1,6 @@
 #include "io/scene_file.hpp"
 
+#include "batch/copy_dynamics.hpp"
 #include "io/joint_state.hpp"
 #include "io/json.hpp"
 #include "io/urdf_import.hpp"
@@ -858,9 +859,45 @@ json::Value randomization_value(const Randomization& r) {
 
 Scene load_scene(const std::string& path) { return read_scene_file(path, false, false); }
 
+// How far below its origin a shape with world pose P reaches along z.
+double depth_below_origin(const Shape& s, const Eigen::Isometry3d& P) {
+  const Eigen::Vector3d z_row = P.linear().row(2).transpose();  // the shape's axes' world z components
+  switch (s.type) {
+    case ShapeType::Sphere: return s.size.x();
+    case ShapeType::Capsule: return std::abs(z_row.z()) * s.size.y() + s.size.x();
+    case ShapeType::Cylinder:  // the rim's lowest point: the axis's end, then the radius across
+      return std::abs(z_row.z()) * s.size.y() + s.size.x() * std::sqrt(std::max(0.0, 1.0 - z_row.z() * z_row.z()));
+    case ShapeType::Box: return z_row.cwiseAbs().dot(s.size);
+    case ShapeType::Mesh: break;  // collides with nothing (a mesh whose file was found became a Box)
+  }
+  return 0.0;
+}
+
+std::optional<double> resting_root_height(const Model& model, Eigen::VectorXd q) {
+  for (int b = 0; b < model.nbody; ++b)
+    if (is_floating_root(model, b)) q[model.body_q_offset[b] + 2] = 0;
+  const std::vector<Eigen::Isometry3d> bodies = CopyDynamics(model).body_poses(q);
+  std::optional<double> lowest;
+  for (const Shape& s : model.shapes) {
+    if (s.body < 0 || s.type == ShapeType::Mesh) continue;
+    const Eigen::Isometry3d P = bodies[s.body] * s.pose;
+    const double bottom = P.translation().z() - depth_below_origin(s, P);
+    lowest = lowest ? std::min(*lowest, bottom) : bottom;
+  }
+  if (!lowest) return std::nullopt;
+  return -*lowest;
+}
+
 Scene scene_from_urdf(const std::string& urdf_path, bool floating_base, bool ground) {
   Scene scene = bare_scene(urdf_path, floating_base);
   scene.env.step.contacts.ground = ground;
+  if (ground && floating_base) {  // the rest stays empty: VecEnv fills it (fill_initial_state)
+    Eigen::VectorXd q = scene.model.neutral_configuration();
+    if (const std::optional<double> height = resting_root_height(scene.model, q))
+      for (int b = 0; b < scene.model.nbody; ++b)
+        if (is_floating_root(scene.model, b)) q[scene.model.body_q_offset[b] + 2] = *height;
+    scene.env.initial_q = q;
+  }
   return scene;
 }
 

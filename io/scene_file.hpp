@@ -11,6 +11,7 @@
 #include "batch/vec_env.hpp"
 #include "layout/model.hpp"
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -44,8 +45,15 @@ Scene load_scene(const std::string& path);
 // A bare URDF with the defaults: no ground unless `ground` (then the plane
 // z = 0 with the default surface), contacts among the model's shapes as the
 // default ContactSettings give them, no drives beyond the URDF's settings,
-// the initial state neutral at rest. Throws SceneError.
+// the initial state neutral at rest; with a ground and a floating base, the
+// root raised to resting_root_height (the robot starts touching the ground,
+// not inside it). Throws SceneError.
 Scene scene_from_urdf(const std::string& urdf_path, bool floating_base, bool ground);
+
+// The height z of q's floating roots at which the lowest point of the
+// model's collision shapes (on moving bodies) touches the plane z = 0, the
+// rest of q as given; nullopt when no moving body has a shape.
+std::optional<double> resting_root_height(const Model& model, Eigen::VectorXd q);
 
 // A scene file when `path` ends in ".json", else a bare URDF. For a scene
 // file, `floating_base` and `ground` override the file only when true: the

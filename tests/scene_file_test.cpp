@@ -540,6 +540,22 @@ double lowest_point(const Model& model, const Eigen::VectorXd& q) {
   return lowest;
 }
 
+// With a ground, a bare URDF with a floating base starts with its lowest
+// shape on the ground (neutral pose), not inside it.
+TEST(SceneFileBundled, AFloatingUrdfOnTheGroundStartsTouchingIt) {
+  for (const std::string& path : {kQuadruped, std::string(LOCKSTEP_SHARED_MODELS_DIR) + "/anymal_b.urdf",
+                                   std::string(LOCKSTEP_SHARED_MODELS_DIR) + "/talos_reduced.urdf"}) {
+    const Scene s = scene_from_urdf(path, true, true);
+    ASSERT_EQ(s.env.initial_q.size(), s.model.nq) << path;
+    EXPECT_GT(s.env.initial_q[2], 0.1) << path;
+    EXPECT_NEAR(lowest_point(s.model, s.env.initial_q), 0.0, 1e-12) << path;
+    Eigen::VectorXd neutral = s.model.neutral_configuration();
+    neutral[2] = s.env.initial_q[2];
+    EXPECT_EQ(s.env.initial_q, neutral) << path << ": only the root's height moves";
+    EXPECT_EQ(scene_from_urdf(path, true, false).env.initial_q.size(), 0) << "no ground: neutral, as before";
+  }
+}
+
 TEST(SceneFileBundled, QuadrupedStartsStandingJustAboveTheGround) {
   const Scene s = load_scene(kModelsDir + "/quadruped_scene.json");
   EXPECT_TRUE(s.floating_base);

@@ -7,6 +7,7 @@
 
 #include "batch/copy_dynamics.hpp"
 #include "batch/simulator.hpp"
+#include "io/scene_file.hpp"
 
 #include <algorithm>
 
@@ -58,21 +59,10 @@ struct Scene {
   int driven_dofs = 0;
 };
 
-// The root height at which the pose q's lowest sphere (a foot) touches the
-// plane z = 0; kBaseHeight when the model has no sphere.
-inline double touching_height(const Model& model, Eigen::VectorXd q) {
-  const CopyDynamics dynamics(model);
-  double lowest = 0;
-  bool found = false;
-  for (int b = 0; b < model.nbody; ++b)
-    if (model.body_joint[b] == JointType::Free) q[model.body_q_offset[b] + 2] = 0;
-  const std::vector<Eigen::Isometry3d> bodies = dynamics.body_poses(q);
-  for (const Shape& s : model.shapes)
-    if (s.type == ShapeType::Sphere && s.body >= 0) {
-      lowest = std::min(lowest, (bodies[s.body] * s.pose).translation().z() - s.size.x());
-      found = true;
-    }
-  return found ? -lowest : kBaseHeight;
+// The root height at which the pose q's lowest shape (a foot) touches the
+// plane z = 0; kBaseHeight when the model has no shapes.
+inline double touching_height(const Model& model, const Eigen::VectorXd& q) {
+  return resting_root_height(model, q).value_or(kBaseHeight);
 }
 
 // ground: the floating root starts where the feet touch the plane z = 0.
