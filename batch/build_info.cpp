@@ -24,9 +24,9 @@ std::string build_description() {
 void check_header_build(const HeaderBuild& caller) {
   const HeaderBuild own;
   if (caller.float_lanes == own.float_lanes && caller.double_lanes == own.double_lanes) return;
-  throw std::logic_error("lockstep: this program was compiled for SIMD lanes of " +
-                         std::to_string(caller.float_lanes) + " float / " + std::to_string(caller.double_lanes) +
-                         " double, but the library is " + build_description() +
+  throw std::logic_error("lockstep: this program was compiled for SIMD lanes of " + std::to_string(caller.float_lanes) +
+                         " float / " + std::to_string(caller.double_lanes) + " double, but the library is " +
+                         build_description() +
                          ": compile the code that includes lockstep's headers with the library's flags "
                          "(CMake's find_package(lockstep) passes them)");
 }

@@ -142,7 +142,10 @@ StageDecision decide(Stage stage, StageMode mode, int count, const std::string& 
 
 Simulator::Simulator(const Model& model, int copies, const StepOptions& options, std::vector<DofSettings> dofs,
                      HeaderBuild caller)
-    : header_check_(caller), model_(&model), options_(options), dofs_(dofs.empty() ? default_dof_settings(model) : std::move(dofs)) {
+    : header_check_(caller),
+      model_(&model),
+      options_(options),
+      dofs_(dofs.empty() ? default_dof_settings(model) : std::move(dofs)) {
   validate(model, copies, options_, dofs_);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);

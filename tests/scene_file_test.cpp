@@ -544,7 +544,7 @@ double lowest_point(const Model& model, const Eigen::VectorXd& q) {
 // shape on the ground (neutral pose), not inside it.
 TEST(SceneFileBundled, AFloatingUrdfOnTheGroundStartsTouchingIt) {
   for (const std::string& path : {kQuadruped, std::string(LOCKSTEP_SHARED_MODELS_DIR) + "/anymal_b.urdf",
-                                   std::string(LOCKSTEP_SHARED_MODELS_DIR) + "/talos_reduced.urdf"}) {
+                                  std::string(LOCKSTEP_SHARED_MODELS_DIR) + "/talos_reduced.urdf"}) {
     const Scene s = scene_from_urdf(path, true, true);
     ASSERT_EQ(s.env.initial_q.size(), s.model.nq) << path;
     EXPECT_GT(s.env.initial_q[2], 0.1) << path;

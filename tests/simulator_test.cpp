@@ -381,8 +381,8 @@ TEST(Simulator, CodeCompiledForOtherLanesIsRefused) {
   const Model model = test::rod_chain({1.0}, 0.5);
   const HeaderBuild own;
   EXPECT_NO_THROW(Simulator(model, 4, {}, {}, own));
-  for (const HeaderBuild other : {HeaderBuild{own.float_lanes * 2, own.double_lanes * 2},
-                                  HeaderBuild{own.float_lanes, own.double_lanes + 1}}) {
+  for (const HeaderBuild other :
+       {HeaderBuild{own.float_lanes * 2, own.double_lanes * 2}, HeaderBuild{own.float_lanes, own.double_lanes + 1}}) {
     EXPECT_THROW_WITH(Simulator(model, 4, {}, {}, other), std::logic_error,
                       "compiled for SIMD lanes of " + std::to_string(other.float_lanes) + " float / " +
                           std::to_string(other.double_lanes) + " double, but the library is lockstep ");
