@@ -61,6 +61,8 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
       sim_(model, copies, options_.step, options_.dofs) {
   for (int k = 0; k < model.nv; ++k)
     if (!is_free_dof(model, k)) action_dofs_.push_back(k);
+  for (int k : action_dofs_)  // the DOF's torque, or the first target coordinate of its joint
+    action_field_.push_back(options_.action_mode == ActionMode::Torque ? k : model.body_q_offset[model.dof_body[k]]);
   if (model.nbody > 0 && model.body_joint[0] != JointType::Free) {
     const int root = model.articulations.front().root_frame;
     if (model.frame_body[root] < 0) fixed_base_pose_ = model.frame_placement[root];
@@ -217,31 +219,32 @@ void VecEnv::visit_batch(F&& f) const {
 
 void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
   const Model& m = model();
+  const bool torque = options_.action_mode == ActionMode::Torque;
   visit_batch([&](auto& b) {
     using T = std::decay_t<decltype(b.state.q.at(0, 0))>;
     const int W = b.state.q.width();
-    tbb::parallel_for(tbb::blocked_range<int>(0, copies(), 256), [&](const tbb::blocked_range<int>& range) {
-      for (int c = range.begin(); c < range.end(); ++c) {
-        if (options_.action_mode == ActionMode::Torque) {
-          T* tau = b.state.tau.lane(c);
-          for (int a = 0; a < action_size(); ++a) tau[action_dofs_[a] * W] = static_cast<T>(actions(c, a));
-          continue;
-        }
-        T* target = b.target_q.lane(c);
+    // block by block, each action column into its field's lanes
+    tbb::parallel_for(tbb::blocked_range<int>(0, b.state.q.blocks(), 16), [&](const tbb::blocked_range<int>& range) {
+      for (int block = range.begin(); block < range.end(); ++block) {
+        const int first = block * W, lanes = std::min(W, copies() - first);
+        T* out = torque ? b.state.tau.block(block) : b.target_q.block(block);
         for (int a = 0; a < action_size();) {
-          const int body = m.dof_body[action_dofs_[a]], qo = m.body_q_offset[body];
-          if (m.body_joint[body] != JointType::Spherical) {
-            target[qo * W] = static_cast<T>(actions(c, a));
+          const int field = action_field_[a];
+          if (torque || m.body_joint[m.dof_body[action_dofs_[a]]] != JointType::Spherical) {
+            for (int l = 0; l < lanes; ++l) out[field * W + l] = static_cast<T>(actions(first + l, a));
             ++a;
             continue;
           }
           // a rotation vector r: the target exp(r) (a non-finite r faults the copy)
-          const Eigen::Vector3d rotation(actions(c, a), actions(c, a + 1), actions(c, a + 2));
-          const double angle = rotation.norm();
-          const Eigen::Quaterniond turn =
-              angle > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, rotation / angle)) : Eigen::Quaterniond::Identity();
-          const double wxyz[4] = {turn.w(), turn.x(), turn.y(), turn.z()};
-          for (int i = 0; i < 4; ++i) target[(qo + i) * W] = static_cast<T>(std::isfinite(angle) ? wxyz[i] : angle);
+          for (int l = 0; l < lanes; ++l) {
+            const Eigen::Vector3d rotation(actions(first + l, a), actions(first + l, a + 1), actions(first + l, a + 2));
+            const double angle = rotation.norm();
+            const Eigen::Quaterniond turn = angle > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, rotation / angle))
+                                                      : Eigen::Quaterniond::Identity();
+            const double wxyz[4] = {turn.w(), turn.x(), turn.y(), turn.z()};
+            for (int i = 0; i < 4; ++i)
+              out[(field + i) * W + l] = static_cast<T>(std::isfinite(angle) ? wxyz[i] : angle);
+          }
           a += 3;
         }
       }

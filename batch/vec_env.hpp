@@ -175,6 +175,7 @@ class VecEnv {
   VecEnvOptions options_;
   Simulator sim_;
   std::vector<int> action_dofs_;
+  std::vector<int> action_field_;  // per action column: its field of tau (Torque) or target_q (PositionTarget)
   Eigen::Isometry3d fixed_base_pose_ = Eigen::Isometry3d::Identity();  // the base when it does not float
   bool ready_ = false;  // reset() was called
   RewardFunction reward_;
