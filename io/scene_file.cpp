@@ -859,6 +859,8 @@ json::Value randomization_value(const Randomization& r) {
 
 Scene load_scene(const std::string& path) { return read_scene_file(path, false, false); }
 
+namespace {
+
 // How far below its origin a shape with world pose P reaches along z.
 double depth_below_origin(const Shape& s, const Eigen::Isometry3d& P) {
   const Eigen::Vector3d z_row = P.linear().row(2).transpose();  // the shape's axes' world z components
@@ -872,6 +874,8 @@ double depth_below_origin(const Shape& s, const Eigen::Isometry3d& P) {
   }
   return 0.0;
 }
+
+}  // namespace
 
 std::optional<double> resting_root_height(const Model& model, Eigen::VectorXd q) {
   for (int b = 0; b < model.nbody; ++b)
