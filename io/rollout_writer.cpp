@@ -174,13 +174,23 @@ StepSlot create_step_dataset(hid_t file, const StepDataset& dataset, std::size_t
   return slot;
 }
 
-// Sets "complete" = 1 and the final attributes of a closed file.
+// Sets "complete" = 1 and the final attributes of a closed file. A reader
+// that keeps the live file open (SWMR, as docs/rollout_files.md shows) holds
+// HDF5's shared file lock, which refuses a read-write open; the writer, the
+// file's only writer, then opens it without the lock. SWMR readers check
+// the metadata they read and read it again when it changes under them.
 void mark_complete(const std::string& path, const std::vector<Attribute>& final_attributes) {
   const Hdf5Lock lock = lock_hdf5();
   const std::string what = "cannot reopen the file to mark it complete";
   const Handle access = checked_handle(H5Pcreate(H5P_FILE_ACCESS), H5Pclose, path, what);
   check(H5Pset_libver_bounds(access.get(), H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), path, what);
-  Handle file = checked_handle(H5Fopen(path.c_str(), H5F_ACC_RDWR, access.get()), H5Fclose, path, what);
+  hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDWR, access.get());
+  if (id < 0) {
+    H5Eclear2(H5E_DEFAULT);
+    check(H5Pset_file_locking(access.get(), false, true), path, what);
+    id = H5Fopen(path.c_str(), H5F_ACC_RDWR, access.get());
+  }
+  Handle file = checked_handle(id, H5Fclose, path, what);
   try {
     for (const Attribute& attribute : final_attributes)
       write_attribute(file.get(), attribute.name, attribute.value, path);

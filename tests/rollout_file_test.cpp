@@ -10,8 +10,10 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -329,6 +331,28 @@ TEST(RolloutFile, CompleteOnlyAfterClose) {
   }
   write_sample(path, 10);
   EXPECT_TRUE(RolloutReader(path).complete());
+}
+
+// A reader holding the live file open (HDF5's shared file lock, as h5py
+// with swmr=True takes it) does not keep close() from marking it complete.
+TEST(RolloutFile, CompletesWhileAReaderHoldsTheFileOpen) {
+  const TempDir dir;
+  const std::string path = dir.file("watched.h5");
+  RolloutWriter writer(path, sample_steps(), {}, {});
+  for (std::int64_t t = 0; t < 10; ++t) {
+    write_sample_step(writer, t);
+    writer.commit();
+  }
+  const int reader = ::open(path.c_str(), O_RDONLY);
+  ASSERT_GE(reader, 0);
+  ASSERT_EQ(::flock(reader, LOCK_SH | LOCK_NB), 0) << "the writer holds no exclusive lock while it writes";
+  EXPECT_NO_THROW(writer.close({{"episodes", std::int64_t{3}}}));
+  ::close(reader);
+  const RolloutReader done(path);
+  EXPECT_TRUE(done.complete());
+  EXPECT_EQ(done.attribute("episodes"), AttributeValue(std::int64_t{3}));
+  EXPECT_EQ(done.steps(), 10);
+  expect_sample_values(done, 0, 10);
 }
 
 TEST(RolloutFile, ReplacesAFileOnlyOnceTheNewOneIsSetUp) {
