@@ -107,13 +107,18 @@ void write_sample_step(RolloutWriter& writer, std::int64_t t) {
   fill(writer, 4, 1, t, tick_value);
 }
 
-void write_sample(const std::string& path, std::int64_t steps, const RolloutFileOptions& options = {},
-                  std::vector<Attribute> final_attributes = {}) {
-  RolloutWriter writer(path, sample_steps(), sample_statics(), sample_attributes(), options);
+// Steps [0, steps) written and committed.
+void commit_sample_steps(RolloutWriter& writer, std::int64_t steps) {
   for (std::int64_t t = 0; t < steps; ++t) {
     write_sample_step(writer, t);
     writer.commit();
   }
+}
+
+void write_sample(const std::string& path, std::int64_t steps, const RolloutFileOptions& options = {},
+                  std::vector<Attribute> final_attributes = {}) {
+  RolloutWriter writer(path, sample_steps(), sample_statics(), sample_attributes(), options);
+  commit_sample_steps(writer, steps);
   writer.close(std::move(final_attributes));
 }
 
@@ -316,10 +321,7 @@ TEST(RolloutFile, CompleteOnlyAfterClose) {
   const std::string path = dir.file("abandoned.h5");
   {
     RolloutWriter writer(path, sample_steps(), {}, {});
-    for (std::int64_t t = 0; t < 10; ++t) {
-      write_sample_step(writer, t);
-      writer.commit();
-    }
+    commit_sample_steps(writer, 10);
     EXPECT_FALSE(RolloutReader(path).complete());  // while it is written
   }  // destroyed without close(): steps written, not complete
   {
@@ -339,10 +341,7 @@ TEST(RolloutFile, CompletesWhileAReaderHoldsTheFileOpen) {
   const TempDir dir;
   const std::string path = dir.file("watched.h5");
   RolloutWriter writer(path, sample_steps(), {}, {});
-  for (std::int64_t t = 0; t < 10; ++t) {
-    write_sample_step(writer, t);
-    writer.commit();
-  }
+  commit_sample_steps(writer, 10);
   const int reader = ::open(path.c_str(), O_RDONLY);
   ASSERT_GE(reader, 0);
   ASSERT_EQ(::flock(reader, LOCK_SH | LOCK_NB), 0) << "the writer holds no exclusive lock while it writes";
