@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
-"""Plot a lockstep rollout file: joint positions of the first few
-environments over time, and the mean reward when the file has one.
+"""Plot a lockstep rollout file: the first environments' joint positions over time, and the mean reward.
+
+The mean reward is plotted when the file has one.
 
     plot_rollout.py FILE.h5 OUT.png [--envs 4] [--dofs name1,name2]
 
 Reads the dataset "q" [T, N, nq] (column names: the attribute "q_names";
 without --dofs, the columns of 1-DOF joints, those also named in the
-attribute "dof_names", at most 12) and "reward" [T, N] if present. Time is
-step * "dt" * "control_steps" (or step * "dt", or the step number without
-"dt"). Works on an interrupted file too (opened with swmr=True; only the
+attribute "dof_names", at most 12) and "reward" [T, N] if present. Row t
+is the state after env step t, at time (t + 1) * "dt" * "control_steps"
+(or with "dt" alone, or the step number t + 1 without "dt"). Works on an interrupted file too (opened with swmr=True; only the
 steps every step dataset holds are plotted). Needs h5py and matplotlib
 (Debian: python3-h5py, python3-matplotlib).
 """
@@ -61,7 +62,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("file", help="a rollout file (.h5)")
     parser.add_argument("out", help="the picture to write (.png)")
-    parser.add_argument("--envs", type=int, default=4, help="environments to plot (default 4)")
+    parser.add_argument("--envs", type=int, help="environments to plot, the first ones (default: 4, or all if fewer)")
     parser.add_argument("--dofs", help="comma-separated q column names (attribute q_names) to plot")
     args = parser.parse_args()
 
@@ -80,8 +81,10 @@ def main():
         seconds = step_seconds(f.attrs)
 
     columns = choose_columns(names, dof_names, args.dofs)
-    envs = max(1, min(args.envs, q.shape[1]))
-    x = [t * seconds for t in range(steps)] if seconds else list(range(steps))
+    envs = min(4, q.shape[1]) if args.envs is None else args.envs
+    if not 1 <= envs <= q.shape[1]:
+        sys.exit(f"plot_rollout.py: --envs must be in [1, {q.shape[1]}] (the file has {q.shape[1]} environments)")
+    x = [(t + 1) * seconds for t in range(steps)] if seconds else list(range(1, steps + 1))  # row t: after step t
     x_label = "time [s]" if seconds else "step"
 
     rows = envs + (reward is not None)

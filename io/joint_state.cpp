@@ -38,7 +38,7 @@ int joint_body(const Model& model, const std::string& name, const std::string& w
   for (const Articulation& a : model.articulations)
     if (!a.floating_base && name == a.name + "_root")
       throw StateError(where + ": unknown joint \"" + name + "\": the model is fixed-base; its floating base " +
-                       "(this name) exists with --floating-base");
+                       "(this name) exists with --floating-base (in a scene file: \"floating_base\": true)");
   throw StateError(where + ": unknown joint \"" + name + "\" (run `lockstep info` to list the joints)");
 }
 
