@@ -279,9 +279,28 @@ void read_per_joint(const json::Value& v, const At& at, const Model& model, std:
   });
 }
 
+// A warning for each revolute or prismatic joint the object `named` (keyed
+// by joint name) sets to a position outside the joint's limits in q: a value
+// in degrees where radians are meant, say. The step would clamp it at once.
+void warn_outside_limits(const Model& model, const json::Value& named, const Eigen::VectorXd& q, const At& at,
+                         std::vector<std::string>& warnings) {
+  for (const auto& [name, value] : named.object) {
+    const int body = model.joint_by_name.at(name);  // read_configuration checked the names
+    const JointType type = model.body_joint[body];
+    if (type != JointType::Revolute && type != JointType::Prismatic) continue;
+    const int k = model.body_dof_offset[body];
+    const double x = q[model.body_q_offset[body]];
+    if (x >= model.dof_lower[k] && x <= model.dof_upper[k]) continue;
+    warnings.push_back(at.file + ": " + at.key(name).path + ": " + json::number(x) + " lies outside the joint's limits [" +
+                       json::number(model.dof_lower[k]) + ", " + json::number(model.dof_upper[k]) + "] " +
+                       (type == JointType::Revolute ? "(radians)" : "(metres)"));
+  }
+}
+
 // ---- the initial state: read_state's format, without "tau"
 
-void read_initial_state(const json::Value& v, const At& at, const Model& model, VecEnvOptions& env) {
+void read_initial_state(const json::Value& v, const At& at, const Model& model, VecEnvOptions& env,
+                        std::vector<std::string>& warnings) {
   const Object keys(v, at, {"q", "qd"});  // read_state would also take "tau"
   try {
     const JointState state = read_state(model, v, at.file + ": " + at.path);
@@ -290,15 +309,18 @@ void read_initial_state(const json::Value& v, const At& at, const Model& model, 
   } catch (const StateError& e) {
     throw SceneError(e.what());
   }
+  if (const json::Value* q = v.find("q")) warn_outside_limits(model, *q, env.initial_q, at.key("q"), warnings);
 }
 
 // Drive targets: joint-name keyed like initial_state's "q".
-void read_drive_targets(const json::Value& v, const At& at, const Model& model, VecEnvOptions& env) {
+void read_drive_targets(const json::Value& v, const At& at, const Model& model, VecEnvOptions& env,
+                        std::vector<std::string>& warnings) {
   try {
     env.drive_target_q = read_configuration(model, v, at.file + ": " + at.path);
   } catch (const StateError& e) {
     throw SceneError(e.what());
   }
+  warn_outside_limits(model, v, env.drive_target_q, at, warnings);
 }
 
 // ---- contacts
@@ -543,8 +565,10 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
   Model& model = scene.model;
   VecEnvOptions& env = scene.env;
   root.with("gravity", [&](const json::Value& v, const At& at) { model.gravity = read_vector3(v, at); });
-  root.with("initial_state", [&](const json::Value& v, const At& at) { read_initial_state(v, at, model, env); });
-  root.with("drive_targets", [&](const json::Value& v, const At& at) { read_drive_targets(v, at, model, env); });
+  root.with("initial_state",
+            [&](const json::Value& v, const At& at) { read_initial_state(v, at, model, env, scene.value_warnings); });
+  root.with("drive_targets",
+            [&](const json::Value& v, const At& at) { read_drive_targets(v, at, model, env, scene.value_warnings); });
   root.with("ground", [&](const json::Value& v, const At& at) { read_ground(v, at, env.step.contacts); });
   env.step.contacts.ground |= ground;
   root.with("boxes", [&](const json::Value& v, const At& at) { read_boxes(v, at, env.step.contacts); });

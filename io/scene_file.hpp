@@ -32,6 +32,9 @@ struct Scene {
   bool floating_base = false;
   Model model;
   std::vector<std::string> warnings;  // from the URDF import
+  // Values the file gives that look wrong, each naming its key: a joint
+  // position outside the joint's limits (the CLI prints them)
+  std::vector<std::string> value_warnings;
   // Step options with contacts; dofs: default_dof_settings(model) with the
   // file's drives and joint dynamics, one per DOF; the environment options,
   // randomisation and initial state (empty: the neutral configuration at

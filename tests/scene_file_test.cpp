@@ -411,6 +411,26 @@ TEST_F(SceneFile, BareUrdfHasNoGroundUnlessAsked) {
   EXPECT_EQ(grounded.env.step.stages[static_cast<int>(Stage::Contacts)], StageMode::Auto);
 }
 
+// A joint position outside its limits (degrees where radians are meant,
+// say) is a warning naming the key; positions within limits give none.
+TEST_F(SceneFile, PositionsOutsideTheJointLimitsAreWarnedAbout) {
+  const std::string model = json_string(fs::absolute(kQuadruped).string());
+  const Scene bad = load_scene(write("degrees.json", "{\"model\": " + model +
+                                                        R"(, "initial_state": {"q": {"FL_knee": -90, "FR_knee": -1.6}},)"
+                                                        R"( "drive_targets": {"HL_knee": 45}})"));
+  ASSERT_EQ(bad.value_warnings.size(), 2u);
+  EXPECT_NE(bad.value_warnings[0].find("degrees.json: initial_state.q.FL_knee: -90 lies outside the joint's limits "
+                                       "[-2.7, -0.3] (radians)"),
+            std::string::npos)
+      << bad.value_warnings[0];
+  EXPECT_NE(bad.value_warnings[1].find("drive_targets.HL_knee: 45 lies outside"), std::string::npos)
+      << bad.value_warnings[1];
+  EXPECT_EQ(bad.env.initial_q[bad.model.body_q_offset[bad.model.joint_index("FL_knee")]], -90) << "kept as written";
+  const Scene good = load_scene(write("radians.json", "{\"model\": " + model +
+                                                         R"(, "initial_state": {"q": {"FL_knee": -1.6}}})"));
+  EXPECT_TRUE(good.value_warnings.empty());
+}
+
 TEST_F(SceneFile, LoadSceneOrUrdfPicksByExtensionAndOverridesOnlyWhenTrue) {
   const std::string model = json_string(fs::absolute(kQuadruped).string());
   const std::string fixed = write("fixed.json", "{\"model\": " + model + "}");

@@ -136,6 +136,7 @@ class Progress {
 
 Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, bool no_contacts) {
   Scene scene = load_scene_or_urdf(path, floating_base, ground);
+  for (const std::string& warning : scene.value_warnings) std::fprintf(stderr, "lockstep: warning: %s\n", warning.c_str());
   if (scene.source == scene.model_path) {
     // A bare URDF: bench's standing scene, its drives taking position targets.
     const step_scene::Scene standing = step_scene::make_scene(scene.model, scene.env.step.contacts.ground);
