@@ -13,24 +13,21 @@ namespace lockstep {
 
 namespace {
 
-void require(bool ok, const std::string& message) {
-  if (!ok) throw std::invalid_argument("VecEnv: " + message);
-}
-
 bool is_free_dof(const Model& m, int k) { return m.body_joint[m.dof_body[k]] == JointType::Free; }
 
 VecEnvOptions checked(const Model& model, VecEnvOptions o) {
-  require(o.control_steps >= 1, "control_steps must be at least 1, got " + std::to_string(o.control_steps));
-  require(o.episode_steps >= 0, "episode_steps must be >= 0 (0: no truncation), got " + std::to_string(o.episode_steps));
+  require(o.control_steps >= 1, "VecEnv: control_steps must be at least 1, got " + std::to_string(o.control_steps));
+  require(o.episode_steps >= 0,
+          "VecEnv: episode_steps must be >= 0 (0: no truncation), got " + std::to_string(o.episode_steps));
   validate_randomization(o.randomization);
   fill_initial_state(model, o);
-  require(o.initial_q.size() == model.nq, "initial_q expects " + std::to_string(model.nq) + " values, got " +
+  require(o.initial_q.size() == model.nq, "VecEnv: initial_q expects " + std::to_string(model.nq) + " values, got " +
                                               std::to_string(o.initial_q.size()));
-  require(o.initial_v.size() == model.nv, "initial_v expects " + std::to_string(model.nv) + " values, got " +
+  require(o.initial_v.size() == model.nv, "VecEnv: initial_v expects " + std::to_string(model.nv) + " values, got " +
                                               std::to_string(o.initial_v.size()));
-  require(o.drive_target_q.size() == model.nq, "drive_target_q expects " + std::to_string(model.nq) +
+  require(o.drive_target_q.size() == model.nq, "VecEnv: drive_target_q expects " + std::to_string(model.nq) +
                                                    " values, got " + std::to_string(o.drive_target_q.size()));
-  require(o.drive_target_q.allFinite(), "drive_target_q must be finite");
+  require(o.drive_target_q.allFinite(), "VecEnv: drive_target_q must be finite");
   if (o.dofs.empty()) o.dofs = default_dof_settings(model);
   // The torque of every source is an observation.
   o.step.record_applied_torque = true;
@@ -70,7 +67,8 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
   if (options_.action_mode == ActionMode::PositionTarget)
     for (int k : action_dofs_)  // an action column without a gain would be ignored
       require(options_.dofs[k].drive_stiffness > 0,
-              "position_target actions need a drive gain (DofSettings::drive_stiffness > 0) on every actuated DOF; " +
+              "VecEnv: position_target actions need a drive gain (DofSettings::drive_stiffness > 0) on every actuated "
+              "DOF; " +
                   model.dof_name[k] + " (DOF " + std::to_string(k) + ") has " +
                   std::to_string(options_.dofs[k].drive_stiffness));
   const bool contacts = sim_.plan()[static_cast<int>(Stage::Contacts)].runs;
@@ -425,8 +423,8 @@ EnvCopyState VecEnv::state(int copy) const {
 void VecEnv::set_state(int copy, const EnvCopyState& s) {
   require_copy_index(copy, copies(), "VecEnv", "set_state");
   sim_.restore(copy, s.simulator);
-  episode_step_.at(copy) = s.episode_step;
-  reset_count_.at(copy) = s.reset_count;
+  episode_step_[copy] = s.episode_step;
+  reset_count_[copy] = s.reset_count;
   last_fault_[copy] = sim_.fault(copy);
   const std::vector<int> one{copy};
   observe(&one, observations_);

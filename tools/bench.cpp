@@ -102,6 +102,14 @@ std::vector<std::string> split(const std::string& list) {
   return items;
 }
 
+// The first entry a list gives a second time, if any.
+template <class T>
+std::optional<T> repeated(const std::vector<T>& list) {
+  for (std::size_t i = 0; i < list.size(); ++i)
+    if (std::find(list.begin(), list.begin() + i, list[i]) != list.begin() + i) return list[i];
+  return std::nullopt;
+}
+
 BenchConfig parse_config(const std::vector<std::string>& args) {
   const ParsedArgs parsed =
       parse_args(args, {"--no-mujoco", "--json", "--floating-base", "--ground", "--no-contacts"},
@@ -140,12 +148,10 @@ BenchConfig parse_config(const std::vector<std::string>& args) {
   }
   if (config.threads.empty() || config.precisions.empty())
     throw UsageError("--threads and --precision need at least one entry");
-  for (std::size_t i = 0; i < config.threads.size(); ++i)
-    if (std::count(config.threads.begin(), config.threads.begin() + i, config.threads[i]))
-      throw UsageError("--threads lists " + std::to_string(config.threads[i]) + " twice");
-  for (std::size_t i = 0; i < config.precisions.size(); ++i)
-    if (std::count(config.precisions.begin(), config.precisions.begin() + i, config.precisions[i]))
-      throw UsageError(std::string("--precision lists ") + precision_name(config.precisions[i]) + " twice");
+  if (const auto twice = repeated(config.threads))
+    throw UsageError("--threads lists " + std::to_string(*twice) + " twice");
+  if (const auto twice = repeated(config.precisions))
+    throw UsageError(std::string("--precision lists ") + precision_name(*twice) + " twice");
   config.mujoco = !parsed.has("--no-mujoco");
   config.floating_base = config.default_model || parsed.has("--floating-base");
   config.ground = parsed.has("--ground");
