@@ -40,6 +40,38 @@ template struct StepBatch<double>;
 
 namespace {
 
+// Whether the copy's entries [first, first + values.size()) of `a` differ
+// from `values`, as the batch's precision holds them.
+template <class T>
+bool differs(const BatchArray<T>& a, int copy, int first, const Eigen::Ref<const Eigen::VectorXd>& values) {
+  for (Eigen::Index k = 0; k < values.size(); ++k)
+    if (a.at(copy, first + static_cast<int>(k)) != static_cast<T>(values[k])) return true;
+  return false;
+}
+
+// How many copies have a nonzero count (or bit set) in `per_copy`.
+template <class Count>
+int copies_with_any(const std::vector<Count>& per_copy) {
+  return static_cast<int>(per_copy.size()) - static_cast<int>(std::count(per_copy.begin(), per_copy.end(), 0));
+}
+
+// The per-DOF parameters a copy may hold of its own, each with the scene's
+// values; entry f is bit 1 << f of Simulator::own_joint_parameters_.
+enum JointParameterField : unsigned {
+  kDriveStiffness = 1u << 0,
+  kDriveDamping = 1u << 1,
+  kDamping = 1u << 2,
+  kArmature = 1u << 3,
+  kFriction = 1u << 4,
+  kAllJointParameters = (1u << 5) - 1,
+};
+template <class Batch>
+auto joint_parameter_fields(Batch& b, const JointParameters& scene) {
+  return std::array{std::pair{&b.drive_stiffness, &scene.drive_stiffness},
+                    std::pair{&b.drive_damping, &scene.drive_damping}, std::pair{&b.joint_damping, &scene.damping},
+                    std::pair{&b.armature, &scene.armature}, std::pair{&b.joint_friction, &scene.friction}};
+}
+
 // Zero joint-row impulses, no contact points: nothing to warm-start from.
 template <class T>
 void clear_warm_start(StepBatch<T>& b, int copy) {
@@ -149,7 +181,10 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   validate(model, copies, options_, dofs_);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
-  own_inertia_.assign(copies, false);
+  own_inertia_bodies_.assign(copies, 0);
+  own_joint_parameters_.assign(copies, 0);
+  model_inertia_ = BatchState<double>::model_inertia_params(model);
+  joint_parameters_ = scene_joint_parameters(model, dofs_);
   make_plan();
   const StepPlan plan = step_plan();
   if (options_.integrator == Integrator::RK4 &&
@@ -209,9 +244,10 @@ void Simulator::make_plan() const {
       decide(Stage::StribeckFriction, mode(Stage::StribeckFriction), stribeck, "DOFs with Stribeck friction"),
       decide(Stage::ExternalWrenches, mode(Stage::ExternalWrenches), wrenches_used_ ? 1 : 0,
              "calls of set_link_wrench"),
-      decide(Stage::PerCopyInertia, mode(Stage::PerCopyInertia),
-             static_cast<int>(std::count(own_inertia_.begin(), own_inertia_.end(), true)),
+      decide(Stage::PerCopyInertia, mode(Stage::PerCopyInertia), copies_with_any(own_inertia_bodies_),
              "copies with their own inertial parameters"),
+      decide(Stage::PerCopyJointParameters, mode(Stage::PerCopyJointParameters), copies_with_any(own_joint_parameters_),
+             "copies with their own drive gains, damping, armature or joint friction"),
       decide(Stage::HardLimits, mode(Stage::HardLimits), hard, "DOFs with hard position limits"),
       decide(Stage::VelocityLimits, mode(Stage::VelocityLimits), velocity, "DOFs with velocity limits"),
       decide(Stage::CoulombFriction, mode(Stage::CoulombFriction), coulomb, "DOFs with Coulomb friction"),
@@ -229,6 +265,7 @@ StepPlan Simulator::step_plan() const {
   p.stribeck = runs(Stage::StribeckFriction);
   p.wrenches = runs(Stage::ExternalWrenches);
   p.per_copy_inertia = runs(Stage::PerCopyInertia);
+  p.per_copy_joint_parameters = runs(Stage::PerCopyJointParameters);
   p.hard_limits = runs(Stage::HardLimits);
   p.velocity_limits = runs(Stage::VelocityLimits);
   p.coulomb_friction = runs(Stage::CoulombFriction);
@@ -428,13 +465,9 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     b.contact_impulse.set(copy, s.contact_impulse);
   });
   note_copy_inputs(copy);
-  // the restored copy may carry inertias of its own, or the model's again
-  const bool own = visit([&](auto& b) {
-    using T = std::decay_t<decltype(b.state.inertia.at(0, 0))>;
-    return b.state.inertia.get(copy) !=
-           BatchState<T>::model_inertia_params(*model_).template cast<T>().template cast<double>();
-  });
-  note_own_inertia(copy, own);
+  // the restored copy may carry parameters of its own, or the scene's again
+  count_own_inertia(copy);
+  note_own_joint_parameters(copy, kAllJointParameters);
 }
 
 void Simulator::note_copy_inputs(int copy) {
@@ -490,6 +523,7 @@ void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen
     b.drive_damping.set(copy, kd);
   });
   note_copy_inputs(copy);
+  note_own_joint_parameters(copy, kDriveStiffness | kDriveDamping);
 }
 
 void Simulator::check_per_dof(const Eigen::VectorXd& values, const char* what) const {
@@ -518,6 +552,7 @@ void Simulator::set_joint_damping(int copy, const Eigen::VectorXd& damping) {
   check_free_of_floating_bases(damping, "set_joint_damping");
   visit([&](auto& b) { b.joint_damping.set(copy, damping); });
   note_copy_inputs(copy);
+  note_own_joint_parameters(copy, kDamping);
 }
 
 void Simulator::set_armature(int copy, const Eigen::VectorXd& armature) {
@@ -525,12 +560,14 @@ void Simulator::set_armature(int copy, const Eigen::VectorXd& armature) {
   check_per_dof(armature, "set_armature");
   check_free_of_floating_bases(armature, "set_armature");
   visit([&](auto& b) { b.armature.set(copy, armature); });
+  note_own_joint_parameters(copy, kArmature);
 }
 
 void Simulator::set_joint_friction(int copy, const Eigen::VectorXd& friction) {
   check_copy(copy, "set_joint_friction");
   check_per_dof(friction, "set_joint_friction");
   visit([&](auto& b) { b.joint_friction.set(copy, friction); });
+  note_own_joint_parameters(copy, kFriction);
 }
 
 void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com,
@@ -547,14 +584,42 @@ void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::V
   require(com.allFinite() && inertia.allFinite(), [&] { return where() + "COM and inertia must be finite"; });
   require(symmetric_positive_semidefinite(inertia),
           [&] { return where() + "the rotational inertia must be symmetric positive semidefinite"; });
+  const bool own_before = body_has_own_inertia(copy, body);
   visit([&](auto& b) { b.state.set_body_inertia(copy, body, mass, com, inertia); });
-  note_own_inertia(copy, true);
+  note_own_inertia(copy, body, own_before);
 }
 
-void Simulator::note_own_inertia(int copy, bool own) {
-  if (own_inertia_[copy] == own) return;
-  own_inertia_[copy] = own;
-  invalidate_plan();
+bool Simulator::body_has_own_inertia(int copy, int body) const {
+  constexpr int n = BatchState<double>::kInertiaParams;
+  return visit([&](auto& b) { return differs(b.state.inertia, copy, n * body, model_inertia_.segment(n * body, n)); });
+}
+
+void Simulator::note_own_inertia(int copy, int body, bool own_before) {
+  int& count = own_inertia_bodies_[copy];
+  const int before = count;
+  count += static_cast<int>(body_has_own_inertia(copy, body)) - static_cast<int>(own_before);
+  if ((before == 0) != (count == 0)) invalidate_plan();
+}
+
+void Simulator::count_own_inertia(int copy) {
+  int count = 0;
+  for (int body = 0; body < model_->nbody; ++body) count += body_has_own_inertia(copy, body);
+  if ((own_inertia_bodies_[copy] == 0) != (count == 0)) invalidate_plan();
+  own_inertia_bodies_[copy] = count;
+}
+
+void Simulator::note_own_joint_parameters(int copy, unsigned fields) {
+  unsigned char& own = own_joint_parameters_[copy];
+  const unsigned char before = own;
+  visit([&](auto& b) {
+    const auto arrays = joint_parameter_fields(b, joint_parameters_);
+    for (std::size_t f = 0; f < arrays.size(); ++f)
+      if (fields >> f & 1u) {
+        const unsigned bit = 1u << f;
+        own = differs(*arrays[f].first, copy, 0, *arrays[f].second) ? own | bit : own & ~bit;
+      }
+  });
+  if ((before == 0) != (own == 0)) invalidate_plan();
 }
 
 void Simulator::set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench) {

@@ -43,8 +43,13 @@ struct StepBatch {
   BatchState<T> state;
   BatchArray<T> target_q;  // (nq) drive target position (quaternions for Spherical joints)
   BatchArray<T> target_v;  // (nv) drive target velocity
+  // The per-DOF parameters below start as the scene's in every copy
+  // (scene_joint_parameters). A copy's own values act only with
+  // Stage::PerCopyJointParameters on: after a Simulator setter (or a
+  // restore) gave some copy values other than the scene's, or forced On.
+  // Written here directly, they need the stage forced On.
   // (nv) per-copy kp and kd. Writing them here does not switch the drive
-  // stage on: use Simulator::set_drive_gains, or force Stage::Drives On.
+  // stage on either: use Simulator::set_drive_gains, or force Stage::Drives On.
   BatchArray<T> drive_stiffness;
   BatchArray<T> drive_damping;
   // (nv) per-copy joint damping and armature, from DofSettings::damping and
@@ -243,7 +248,17 @@ class Simulator {
   // Invalidates the plan when a copy's drive gains, damping or wrenches need
   // a stage the plan skips.
   void note_copy_inputs(int copy);
-  void note_own_inertia(int copy, bool own);
+  // Counts, after a write to body `body`'s inertial parameters in the copy
+  // (own_before: whether they differed from the model's before it), the
+  // copy's bodies with inertias of their own; invalidates the plan when the
+  // copy starts or stops having any.
+  void note_own_inertia(int copy, int body, bool own_before);
+  void count_own_inertia(int copy);  // from scratch, after a restore
+  bool body_has_own_inertia(int copy, int body) const;
+  // Records which of the copy's per-DOF parameters among `fields` (bits
+  // of simulator.cpp's JointParameterField) differ from the scene's;
+  // invalidates the plan when the copy starts or stops having any.
+  void note_own_joint_parameters(int copy, unsigned fields);
   // out = q with every quaternion normalised; throws on a zero or non-finite one.
   void checked_configuration(const Eigen::VectorXd& q, const char* what, Eigen::VectorXd& out) const;
   template <class F>
@@ -264,7 +279,14 @@ class Simulator {
   bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive
   bool per_copy_damping_ = false;  // set_joint_damping gave some copy damping
   bool wrenches_used_ = false;   // set_link_wrench was called
-  std::vector<bool> own_inertia_;  // per copy: set_body_inertia or a restore gave it inertias other than the model's
+  // Per copy: how many bodies have inertial parameters other than the
+  // model's (Stage::PerCopyInertia runs while some copy has any), and which
+  // per-DOF parameters differ from the scene's, as JointParameterField bits
+  // (Stage::PerCopyJointParameters).
+  std::vector<int> own_inertia_bodies_;
+  std::vector<unsigned char> own_joint_parameters_;
+  Eigen::VectorXd model_inertia_;     // BatchState::model_inertia_params
+  JointParameters joint_parameters_;  // scene_joint_parameters
   Eigen::VectorXd configuration_;  // set_state's normalised q, kept so that a reset allocates nothing
   std::unique_ptr<Engine> engine_;
   // The engine's batch, in the precision it runs (the other is null): the

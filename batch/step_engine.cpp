@@ -42,8 +42,16 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
                           const std::vector<DofSettings>& dofs, const StepPlan& plan, const ContactPairs& pairs)
-    : options_(options), plan_(plan), km_(model), batch_(model, copies, kWidth, 0),
-      model_inertia_(kWidth, BatchState<T>::kInertiaParams * model.nbody, kWidth) {
+    : options_(options),
+      plan_(plan),
+      km_(model),
+      batch_(model, copies, kWidth, 0),
+      model_inertia_(kWidth, BatchState<T>::kInertiaParams * model.nbody, kWidth),
+      scene_drive_stiffness_(kWidth, model.nv, kWidth),
+      scene_drive_damping_(kWidth, model.nv, kWidth),
+      scene_damping_(kWidth, model.nv, kWidth),
+      scene_armature_(kWidth, model.nv, kWidth),
+      scene_friction_(kWidth, model.nv, kWidth) {
   model_inertia_.set_all(BatchState<T>::model_inertia_params(model));
   const int nv = model.nv;
   jm_.acceleration_drive.resize(nv);
@@ -105,16 +113,19 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   if (options.record_applied_torque)
     for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
       *a = BatchArray<T>(copies, nv, kWidth);
-  Eigen::VectorXd kp(nv), kd(nv), damping(nv), friction(nv);
-  for (int k = 0; k < nv; ++k) {
-    const DofSettings& d = dofs[k];
-    kp[k] = d.drive_stiffness, kd[k] = d.drive_damping, damping[k] = d.damping;
-    friction[k] = d.friction_model == FrictionModel::Coulomb ? d.friction : 0.0;
-  }
-  batch_.drive_stiffness.set_all(kp);
-  batch_.drive_damping.set_all(kd);
-  batch_.joint_damping.set_all(damping);
-  batch_.joint_friction.set_all(friction);
+  const JointParameters scene = scene_joint_parameters(model, dofs);
+  const std::pair<BatchArray<T>*, const Eigen::VectorXd*> joint_parameters[] = {
+      {&batch_.drive_stiffness, &scene.drive_stiffness},
+      {&scene_drive_stiffness_, &scene.drive_stiffness},
+      {&batch_.drive_damping, &scene.drive_damping},
+      {&scene_drive_damping_, &scene.drive_damping},
+      {&batch_.joint_damping, &scene.damping},
+      {&scene_damping_, &scene.damping},
+      {&batch_.armature, &scene.armature},
+      {&scene_armature_, &scene.armature},
+      {&batch_.joint_friction, &scene.friction},
+      {&scene_friction_, &scene.friction}};
+  for (const auto& [array, values] : joint_parameters) array->set_all(*values);
   // The armature is per copy (StepBatch::armature): the step's ABA and CRBA
   // take it with the implicit diagonal (StepJointTerms), not from km_.
   std::fill(km_.dof_armature.begin(), km_.dof_armature.end(), T(0));
@@ -220,6 +231,7 @@ void StepEngine<L>::set_plan(const StepPlan& plan) {
   plan_.drives = plan.drives, plan_.damping = plan.damping, plan_.springs = plan.springs;
   plan_.soft_limits = plan.soft_limits, plan_.stribeck = plan.stribeck, plan_.wrenches = plan.wrenches;
   plan_.per_copy_inertia = plan.per_copy_inertia;
+  plan_.per_copy_joint_parameters = plan.per_copy_joint_parameters;
   jm_.drives = plan.drives, jm_.damping = plan.damping, jm_.springs = plan.springs;
   jm_.soft_limits = plan.soft_limits, jm_.stribeck = plan.stribeck;
 }
@@ -334,9 +346,14 @@ void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
   in.inertia = inertia(block);
   in.gravity = B.state.gravity.block(block);
   in.wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
-  const JointTermInputs<T> terms_in{q, v, B.target_q.block(block), B.target_v.block(block),
-                                    B.drive_stiffness.block(block), B.drive_damping.block(block),
-                                    B.joint_damping.block(block), B.armature.block(block)};
+  const JointTermInputs<T> terms_in{q,
+                                    v,
+                                    B.target_q.block(block),
+                                    B.target_v.block(block),
+                                    joint_parameter(B.drive_stiffness, scene_drive_stiffness_, block),
+                                    joint_parameter(B.drive_damping, scene_drive_damping_, block),
+                                    joint_parameter(B.joint_damping, scene_damping_, block),
+                                    joint_parameter(B.armature, scene_armature_, block)};
   for (int k = 0; k < nv; ++k) s.u0[k] = lane::load<L>(v + k * W);
 
   if (options_.integrator == Integrator::RK4) {
@@ -534,7 +551,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   const int mj = static_cast<int>(row_specs_.size()), mc = contacts.k * contacts.slots;
   rows.m = mj + mc;
   const T erp = static_cast<T>(options_.error_reduction);
-  const T* friction = batch_.joint_friction.block(block);
+  const T* friction = joint_parameter(batch_.joint_friction, scene_friction_, block);
   const L zero(T(0)), warm(static_cast<T>(options_.warm_start));
   // Without contacts the joint rows are tested before they are built (a
   // block at rest builds none); with them, built and tested once, each

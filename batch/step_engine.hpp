@@ -22,6 +22,9 @@ struct StepPlan {
   bool drives = false, damping = false, springs = false, soft_limits = false, stribeck = false;
   bool wrenches = false;
   bool per_copy_inertia = false;  // else every block reads block 0's inertias (all copies hold the model's)
+  // else every block reads one block of the scene's drive gains, damping,
+  // armature and joint friction (all copies hold those)
+  bool per_copy_joint_parameters = false;
   bool hard_limits = false, velocity_limits = false, coulomb_friction = false;
   bool contacts = false;
 };
@@ -183,6 +186,12 @@ class StepEngine final : public Simulator::Engine {
   const T* inertia(int block) const {
     return plan_.per_copy_inertia ? batch_.state.inertia.block(block) : model_inertia_.block(0);
   }
+  // Likewise a per-DOF parameter of block `block` (drive gains, damping,
+  // armature, joint friction): its copies' own, or, with
+  // Stage::PerCopyJointParameters skipped, the scene's (`scene`, one block).
+  const T* joint_parameter(const BatchArray<T>& per_copy, const BatchArray<T>& scene, int block) const {
+    return plan_.per_copy_joint_parameters ? per_copy.block(block) : scene.block(0);
+  }
   KernelModel<T> km_;
   JointTermModel<T> jm_;
   std::vector<JointRowSpec<T>> row_specs_;
@@ -195,6 +204,8 @@ class StepEngine final : public Simulator::Engine {
   ContactParams<T> contact_params_;
   StepBatch<T> batch_;
   BatchArray<T> model_inertia_;  // one block of the model's inertial parameters
+  // one block each of the scene's per-DOF parameters (scene_joint_parameters)
+  BatchArray<T> scene_drive_stiffness_, scene_drive_damping_, scene_damping_, scene_armature_, scene_friction_;
   // One ScratchPair per thread slot of the arena that steps, indexed by
   // tbb::this_task_arena::current_thread_index(): all of them are made
   // before a step's blocks run (reserve_scratch), so no worker allocates

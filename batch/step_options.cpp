@@ -22,6 +22,8 @@ const char* stage_name(Stage stage) {
     case Stage::StribeckFriction: return "Stribeck friction";
     case Stage::ExternalWrenches: return "external wrenches";
     case Stage::PerCopyInertia: return "per-copy inertia";
+    case Stage::PerCopyJointParameters:
+      return "per-copy joint parameters";
     case Stage::HardLimits: return "hard limits";
     case Stage::VelocityLimits: return "velocity limits";
     case Stage::CoulombFriction: return "Coulomb friction";
@@ -55,6 +57,21 @@ std::vector<DofSettings> default_dof_settings(const Model& model) {
     d.velocity_limit = model.dof_velocity_limit[k];
   }
   return dofs;
+}
+
+JointParameters scene_joint_parameters(const Model& model, const std::vector<DofSettings>& dofs) {
+  JointParameters p;
+  for (Eigen::VectorXd* x : {&p.drive_stiffness, &p.drive_damping, &p.damping, &p.armature, &p.friction})
+    x->resize(model.nv);
+  for (int k = 0; k < model.nv; ++k) {
+    const DofSettings& d = dofs[k];
+    p.drive_stiffness[k] = d.drive_stiffness;
+    p.drive_damping[k] = d.drive_damping;
+    p.damping[k] = d.damping;
+    p.armature[k] = model.dof_armature[k];
+    p.friction[k] = d.friction_model == FrictionModel::Coulomb ? d.friction : 0.0;
+  }
+  return p;
 }
 
 }  // namespace lockstep

@@ -65,20 +65,30 @@ struct DofSettings {
 
 std::vector<DofSettings> default_dof_settings(const Model& model);
 
+// The per-DOF parameters every copy starts with: the scene's drive gains,
+// damping and Coulomb friction (zero on DOFs with another friction model)
+// and the model's armature. With Stage::PerCopyJointParameters skipped,
+// every copy steps with these.
+struct JointParameters {
+  Eigen::VectorXd drive_stiffness, drive_damping, damping, armature, friction;  // (nv) each
+};
+JointParameters scene_joint_parameters(const Model& model, const std::vector<DofSettings>& dofs);
+
 // The pipeline's stages; each runs when the scene needs it (Auto) or when
 // forced On; Off skips it even if the scene has the feature.
 enum class Stage : int {
-  Drives,          // PD drives (explicit command + implicit diagonal)
-  Damping,         // joint damping, implicit
-  Springs,         // joint springs, implicit
-  SoftLimits,      // spring-damper limits, implicit
-  StribeckFriction,// smooth friction force, explicit
-  ExternalWrenches,// link wrenches through J^T
-  PerCopyInertia,  // each copy's own inertial parameters; skipped, all share the model's
-  HardLimits,      // solver rows: one-sided position limits
-  VelocityLimits,  // solver rows: |v| bounds
-  CoulombFriction, // solver rows: boxed friction impulses
-  Contacts,        // collision detection and contact rows
+  Drives,                  // PD drives (explicit command + implicit diagonal)
+  Damping,                 // joint damping, implicit
+  Springs,                 // joint springs, implicit
+  SoftLimits,              // spring-damper limits, implicit
+  StribeckFriction,        // smooth friction force, explicit
+  ExternalWrenches,        // link wrenches through J^T
+  PerCopyInertia,          // each copy's own inertial parameters; skipped, all share the model's
+  PerCopyJointParameters,  // each copy's own drive gains, damping, armature, joint friction; skipped, the scene's
+  HardLimits,              // solver rows: one-sided position limits
+  VelocityLimits,          // solver rows: |v| bounds
+  CoulombFriction,         // solver rows: boxed friction impulses
+  Contacts,                // collision detection and contact rows
   Count
 };
 inline constexpr int kStageCount = static_cast<int>(Stage::Count);

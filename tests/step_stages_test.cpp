@@ -24,7 +24,8 @@ Stage stage_at(int i) { return static_cast<Stage>(i); }
 // even legs DOFs and hard limits [-0.3, 0.3] on odd ones, velocity limits of
 // 5 rad/s, Coulomb friction on every third DOF and Stribeck friction on the
 // next. A scene without hard (velocity) limits keeps them, 3 rad (1000
-// rad/s) away: never reached. Drives and wrenches come per copy.
+// rad/s) away: never reached. Drives and wrenches come per copy, except
+// without per-copy joint parameters: then the drives are the scene's.
 std::vector<DofSettings> scene_dofs(const Model& model, Stage unused) {
   std::vector<DofSettings> dofs = default_dof_settings(model);
   for (int k = 0, leg = 0; k < model.nv; ++k) {
@@ -39,6 +40,7 @@ std::vector<DofSettings> scene_dofs(const Model& model, Stage unused) {
     d.upper = range;
     if (soft) d.limit_stiffness = 400.0, d.limit_damping = 4.0;
     d.velocity_limit = unused == Stage::VelocityLimits ? 1e3 : 5.0;
+    if (unused == Stage::PerCopyJointParameters) d.drive_stiffness = 50.0, d.drive_damping = 1.5;
     if (leg % 3 == 0 && unused != Stage::CoulombFriction) d.friction = 0.3;
     if (leg % 3 == 1 && unused != Stage::StribeckFriction) {
       d.friction_model = FrictionModel::Stribeck;
@@ -52,7 +54,8 @@ std::vector<DofSettings> scene_dofs(const Model& model, Stage unused) {
 }
 
 // The scene's simulator with per-copy states, torques, targets and (unless
-// unused) drive gains, link wrenches and the ground, stepped kSteps times.
+// unused) drive gains, link wrenches, heavier bases and more armature in odd
+// copies, and the ground, stepped kSteps times.
 Simulator run_scene(const Model& model, Stage unused, StepOptions options) {
   const std::vector<DofSettings> dofs = scene_dofs(model, unused);
   options.contacts.ground = unused != Stage::Contacts;
@@ -60,10 +63,18 @@ Simulator run_scene(const Model& model, Stage unused, StepOptions options) {
   for (int c = 0; c < kCopies; ++c) {
     test::CopyInputs in = test::random_copy_inputs(model, dofs, 300u + static_cast<unsigned>(c), 2.0);
     if (unused == Stage::Drives) in.kp.setZero(), in.kd.setZero();
+    if (unused == Stage::PerCopyJointParameters)
+      for (int k = 0; k < model.nv; ++k) in.kp[k] = dofs[k].drive_stiffness, in.kd[k] = dofs[k].drive_damping;
     in.push = unused != Stage::ExternalWrenches;
     test::apply_copy_inputs(sim, c, in);
     if (unused != Stage::PerCopyInertia && c % 2 == 1)  // a heavier base in odd copies
       sim.set_body_inertia(c, 0, 1.1 * model.body_mass[0], model.body_com[0], 1.1 * model.body_inertia[0]);
+    if (unused != Stage::PerCopyJointParameters && c % 2 == 1) {  // rotors on the legs' DOFs in odd copies
+      Eigen::VectorXd armature = Eigen::Map<const Eigen::VectorXd>(model.dof_armature.data(), model.nv);
+      for (int k = 0; k < model.nv; ++k)
+        if (model.body_joint[model.dof_body[k]] != JointType::Free) armature[k] += 0.01;
+      sim.set_armature(c, armature);
+    }
   }
   sim.step(kSteps);
   return sim;
@@ -228,9 +239,10 @@ TEST(StepStagesPlan, BatchWrenchActsWithTheStageForcedOn) {
 }
 
 // Copies step with one shared block of the model's inertias until some
-// copy gets its own (set_body_inertia, or a restore carrying them); such a
-// copy then steps exactly as a copy of a model with those inertias, and a
-// restore of the model's inertias shares the block again.
+// copy gets its own (set_body_inertia with other values than the model's,
+// or a restore carrying them); such a copy then steps exactly as a copy of a
+// model with those inertias, and the model's inertias set or restored share
+// the block again.
 TEST(StepStagesPlan, PerCopyInertiaFollowsSetBodyInertiaAndRestore) {
   const Model model = test::load_shared_model("anymal_b", true);
   Model heavy = model;  // the base 10 % heavier
@@ -241,9 +253,13 @@ TEST(StepStagesPlan, PerCopyInertiaFollowsSetBodyInertiaAndRestore) {
   const std::vector<DofSettings> dofs = scene_dofs(model, Stage::Contacts);
   Simulator sim(model, copies, o, dofs), fresh(model, copies, o, dofs), reference(heavy, 1, o, dofs);
   EXPECT_FALSE(sim.plan()[inertia].runs) << sim.describe_plan();
+  sim.set_body_inertia(own, 0, model.body_mass[0], model.body_com[0], model.body_inertia[0]);
+  EXPECT_FALSE(sim.plan()[inertia].runs) << "the model's own values, set";
   const CopySnapshot plain = sim.snapshot(own);
+  sim.set_body_inertia(own, 1, heavy.body_mass[1], heavy.body_com[1], 2.0 * heavy.body_inertia[1]);
   sim.set_body_inertia(own, 0, heavy.body_mass[0], heavy.body_com[0], heavy.body_inertia[0]);
-  EXPECT_TRUE(sim.plan()[inertia].runs) << sim.describe_plan();
+  sim.set_body_inertia(own, 1, model.body_mass[1], model.body_com[1], model.body_inertia[1]);
+  EXPECT_TRUE(sim.plan()[inertia].runs) << "body 0 still heavier\n" << sim.describe_plan();
   const test::CopyInputs in = test::random_copy_inputs(model, dofs, 77u, 2.0);
   for (int c = 0; c < copies; ++c) test::apply_copy_inputs(sim, c, in);
   test::apply_copy_inputs(reference, 0, in);
@@ -267,6 +283,66 @@ TEST(StepStagesPlan, PerCopyInertiaFollowsSetBodyInertiaAndRestore) {
   Simulator shared(model, copies, off, dofs);
   shared.set_body_inertia(1, 0, heavy.body_mass[0], heavy.body_com[0], heavy.body_inertia[0]);
   for (int c : {0, 1, own}) test::apply_copy_inputs(shared, c, in);
+  shared.step(20);
+  EXPECT_TRUE(same_state(shared, 1, shared, 0)) << "copy 1 in block 0, stage forced off";
+  EXPECT_TRUE(same_state(shared, own, shared, 0)) << "a copy in the last block, stage forced off";
+  // and setting the model's values again shares the block as well
+  sim.set_body_inertia(own, 0, heavy.body_mass[0], heavy.body_com[0], heavy.body_inertia[0]);
+  ASSERT_TRUE(sim.plan()[inertia].runs);
+  sim.set_body_inertia(own, 0, model.body_mass[0], model.body_com[0], model.body_inertia[0]);
+  EXPECT_FALSE(sim.plan()[inertia].runs) << sim.describe_plan();
+}
+
+// Likewise the per-DOF parameters: every copy steps with one block of the
+// scene's drive gains, damping, armature and joint friction until a setter
+// gives some copy values of its own. That copy then steps exactly as in a
+// scene with those values; the scene's values set or restored again share
+// the block.
+TEST(StepStagesPlan, PerCopyJointParametersFollowTheSettersAndRestore) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  Model rotors = model;  // 0.02 more armature on every leg DOF
+  Eigen::VectorXd armature = Eigen::Map<const Eigen::VectorXd>(model.dof_armature.data(), model.nv);
+  const Eigen::VectorXd scene_armature = armature;
+  for (int k = 0; k < model.nv; ++k)
+    if (model.body_joint[model.dof_body[k]] != JointType::Free) armature[k] += 0.02;
+  rotors.dof_armature.assign(armature.data(), armature.data() + model.nv);
+  const int stage = static_cast<int>(Stage::PerCopyJointParameters), copies = 40, own = 37;  // own: in the last block
+  const StepOptions o = test::scene_options(Precision::Float, SolverType::PGS);
+  std::vector<DofSettings> dofs = scene_dofs(model, Stage::Contacts);
+  for (int k = 0; k < model.nv; ++k)
+    if (model.body_joint[model.dof_body[k]] != JointType::Free) dofs[k].drive_stiffness = 60, dofs[k].drive_damping = 2;
+  Simulator sim(model, copies, o, dofs), reference(rotors, 1, o, dofs);
+  test::CopyInputs in = test::random_copy_inputs(model, dofs, 91u, 2.0);
+  for (int k = 0; k < model.nv; ++k) in.kp[k] = dofs[k].drive_stiffness, in.kd[k] = dofs[k].drive_damping;
+  for (int c = 0; c < copies; ++c) test::apply_copy_inputs(sim, c, in);  // the scene's gains, set per copy
+  test::apply_copy_inputs(reference, 0, in);
+  EXPECT_FALSE(sim.plan()[stage].runs) << "the scene's gains, set\n" << sim.describe_plan();
+  const CopySnapshot plain = sim.snapshot(own);
+  sim.set_armature(own, armature);
+  EXPECT_TRUE(sim.plan()[stage].runs) << sim.describe_plan();
+  sim.step(20);
+  reference.step(20);
+  EXPECT_TRUE(same_state(sim, own, reference, 0)) << "the copy with more armature";
+  EXPECT_FALSE(same_state(sim, own, sim, 0)) << "the armature changed nothing";
+  sim.restore(own, plain);
+  EXPECT_FALSE(sim.plan()[stage].runs) << "the scene's values restored\n" << sim.describe_plan();
+  // each setter counts: damping on, armature back to the scene's, damping
+  // back: the stage follows the last copy with any value of its own
+  Eigen::VectorXd damping = Eigen::VectorXd::Zero(model.nv);
+  for (int k = 0; k < model.nv; ++k) damping[k] = dofs[k].damping;
+  sim.set_armature(own, armature);
+  sim.set_joint_damping(own, 2.0 * damping);
+  sim.set_armature(own, scene_armature);
+  EXPECT_TRUE(sim.plan()[stage].runs) << "damping still its own";
+  sim.set_joint_damping(own, damping);
+  EXPECT_FALSE(sim.plan()[stage].runs) << sim.describe_plan();
+  // forced off, every copy steps with the scene's, whatever its own
+  StepOptions off = o;
+  off.force(Stage::PerCopyJointParameters, StageMode::Off);
+  Simulator shared(model, copies, off, dofs);
+  for (int c : {0, 1, own}) test::apply_copy_inputs(shared, c, in);
+  shared.set_armature(1, armature);
+  shared.set_armature(own, armature);
   shared.step(20);
   EXPECT_TRUE(same_state(shared, 1, shared, 0)) << "copy 1 in block 0, stage forced off";
   EXPECT_TRUE(same_state(shared, own, shared, 0)) << "a copy in the last block, stage forced off";

@@ -155,6 +155,38 @@ TEST(VecEnv, ResetDrawsEveryParameterInItsRangePerCopyAndPerReset) {
   EXPECT_NE(env.simulator().snapshot(2).parameters, before.parameters);  // a new draw
 }
 
+// A reset that draws nothing leaves every copy with the model's inertias
+// and the scene's joint parameters, so the step reads one shared block of
+// each; a range that draws turns the stage of what it draws on.
+TEST(VecEnv, ResetsThatDrawNothingKeepTheSharedParameterBlocks) {
+  const VecEnvOptions plain = [] {
+    VecEnvOptions o = standing_options(anymal());
+    o.randomization = Randomization{};
+    return o;
+  }();
+  const int inertia = static_cast<int>(Stage::PerCopyInertia);
+  const int joints = static_cast<int>(Stage::PerCopyJointParameters);
+  VecEnv env(anymal(), 20, plain);
+  env.reset();
+  env.step(wave_actions(env, iota(20), 0));
+  EXPECT_FALSE(env.simulator().plan()[inertia].runs) << env.simulator().describe_plan();
+  EXPECT_FALSE(env.simulator().plan()[joints].runs) << env.simulator().describe_plan();
+
+  VecEnvOptions masses = plain;
+  masses.randomization.mass_scale = {0.9, 1.1};
+  VecEnv heavier(anymal(), 20, masses);
+  heavier.reset();
+  EXPECT_TRUE(heavier.simulator().plan()[inertia].runs);
+  EXPECT_FALSE(heavier.simulator().plan()[joints].runs);
+
+  VecEnvOptions gains = plain;
+  gains.randomization.kp_scale = {0.9, 1.1};
+  VecEnv stiffer(anymal(), 20, gains);
+  stiffer.reset();
+  EXPECT_FALSE(stiffer.simulator().plan()[inertia].runs);
+  EXPECT_TRUE(stiffer.simulator().plan()[joints].runs);
+}
+
 // Copy c of any batch, on any thread count, draws and steps the same.
 TEST(VecEnv, CopiesDoNotDependOnBatchSizeOrThreads) {
   const VecEnvOptions options = standing_options(anymal());
