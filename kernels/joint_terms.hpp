@@ -76,6 +76,9 @@ inline L stribeck_friction(const L& v, const L& coulomb, const L& extra, const L
 }
 
 // Fills the scratch's explicit forces and implicit weights for one block.
+// Each DOF's four values are summed in registers and stored once; the
+// scratch's data pointers are taken once, since a SIMD store may alias any
+// memory and would make the compiler reload them after every store.
 template <class L>
 void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTermModel<lane::scalar_t<L>>& jm,
                         lane::scalar_t<L> dt, const JointTermInputs<lane::scalar_t<L>>& in,
@@ -84,20 +87,23 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
   constexpr std::size_t W = lane::width_v<L>;
   const L zero(T(0));
   const L h(dt), h2(dt * dt);
-  for (int k = 0; k < km.nv; ++k) {
-    s.pd[k] = zero;
-    s.pd_implicit[k] = zero;
-    s.passive[k] = zero;
-    s.passive_implicit[k] = zero;
-  }
+  L* const pd_out = s.pd.data();
+  L* const pd_implicit_out = s.pd_implicit.data();
+  L* const passive_out = s.passive.data();
+  L* const passive_implicit_out = s.passive_implicit.data();
   for (int b = 0; b < km.nbody; ++b) {
     const JointType type = km.body_joint[b];
     const int qo = km.body_q_offset[b], k0 = km.body_dof_offset[b];
-    if (type == JointType::Free) continue;  // the root takes no drive, spring or limit
-    const int n = joint_nv(type);
+    if (type == JointType::Free) {  // the root takes no drive, spring or limit
+      for (int k = k0; k < k0 + 6; ++k)
+        pd_out[k] = zero, pd_implicit_out[k] = zero, passive_out[k] = zero, passive_implicit_out[k] = zero;
+      continue;
+    }
+    const bool spherical = type == JointType::Spherical;
+    const int n = spherical ? 3 : 1;
     // position error to the drive target, per DOF
     L error[3];
-    if (type == JointType::Spherical) {
+    if (spherical) {
       // RaiSim: the rotation vector of q^-1 q_target, in the joint's child frame
       const Quaternion<L> a = load_quaternion<L>(in.q + qo * W);
       const Quaternion<L> c = load_quaternion<L>(in.target_q + qo * W);
@@ -109,39 +115,43 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
     for (int i = 0; i < n; ++i) {
       const int k = k0 + i;
       const L v = lane::load<L>(in.v + k * W);
+      L pd = zero, pd_implicit = zero, passive = zero, passive_implicit = zero;
       if (jm.drives) {
         const L kp = lane::load<L>(in.stiffness + k * W), kd = lane::load<L>(in.damping + k * W);
         const L predicted_error = lane::fnmadd(h, v, error[i]);  // q_ref - (q0 + dt v0)
-        s.pd[k] = lane::fmadd(kp, predicted_error, kd * (lane::load<L>(in.target_v + k * W) - v));
-        s.pd_implicit[k] = lane::fmadd(h2, kp, h * kd);
+        pd = lane::fmadd(kp, predicted_error, kd * (lane::load<L>(in.target_v + k * W) - v));
+        pd_implicit = lane::fmadd(h2, kp, h * kd);
       }
       if (jm.damping) {
         const L c = lane::load<L>(in.joint_damping + k * W);
-        s.passive[k] = lane::fnmadd(c, v, s.passive[k]);
-        s.passive_implicit[k] = lane::fmadd(h, c, s.passive_implicit[k]);
+        passive = lane::fnmadd(c, v, passive);
+        passive_implicit = lane::fmadd(h, c, passive_implicit);
       }
-      if (type == JointType::Spherical) continue;  // springs, soft limits and Stribeck: 1-DOF joints
-      const L q = lane::load<L>(in.q + qo * W);
-      const L q_end = lane::fmadd(h, v, q);  // q0 + dt v0
-      if (jm.springs) {
-        const L ks(jm.spring_stiffness[k]);
-        s.passive[k] = lane::fmadd(ks, L(jm.spring_rest[k]) - q_end, s.passive[k]);
-        s.passive_implicit[k] = lane::fmadd(h2, ks, s.passive_implicit[k]);
+      if (!spherical) {  // springs, soft limits and Stribeck: 1-DOF joints
+        const L q = lane::load<L>(in.q + qo * W);
+        const L q_end = lane::fmadd(h, v, q);  // q0 + dt v0
+        if (jm.springs) {
+          const L ks(jm.spring_stiffness[k]);
+          passive = lane::fmadd(ks, L(jm.spring_rest[k]) - q_end, passive);
+          passive_implicit = lane::fmadd(h2, ks, passive_implicit);
+        }
+        if (jm.soft_limits) {
+          // beyond a limit (at the predicted end of the step): a spring-damper
+          // pushing back, k (limit - q) - c v, implicit like the drives
+          const L kl(jm.limit_stiffness[k]), cl(jm.limit_damping[k]);
+          const L below = L(jm.lower[k]) - q_end, above = L(jm.upper[k]) - q_end;
+          const auto under = below > L(T(0)), over = above < L(T(0));
+          const L push = lane::select(under, below, lane::select(over, above, zero));
+          const auto active = under || over;
+          passive = passive + lane::select(active, lane::fnmadd(cl, v, kl * push), zero);
+          passive_implicit = passive_implicit + lane::select(active, lane::fmadd(h2, kl, h * cl), zero);
+        }
+        if (jm.stribeck)
+          passive = passive + stribeck_friction(v, L(jm.coulomb[k]), L(jm.stiction_extra[k]), L(jm.falloff_velocity[k]),
+                                                L(jm.stribeck_velocity[k]));
       }
-      if (jm.soft_limits) {
-        // beyond a limit (at the predicted end of the step): a spring-damper
-        // pushing back, k (limit - q) - c v, implicit like the drives
-        const L kl(jm.limit_stiffness[k]), cl(jm.limit_damping[k]);
-        const L below = L(jm.lower[k]) - q_end, above = L(jm.upper[k]) - q_end;
-        const auto under = below > L(T(0)), over = above < L(T(0));
-        const L push = lane::select(under, below, lane::select(over, above, zero));
-        const auto active = under || over;
-        s.passive[k] = s.passive[k] + lane::select(active, lane::fnmadd(cl, v, kl * push), zero);
-        s.passive_implicit[k] = s.passive_implicit[k] + lane::select(active, lane::fmadd(h2, kl, h * cl), zero);
-      }
-      if (jm.stribeck)
-        s.passive[k] = s.passive[k] + stribeck_friction(v, L(jm.coulomb[k]), L(jm.stiction_extra[k]),
-                                                        L(jm.falloff_velocity[k]), L(jm.stribeck_velocity[k]));
+      pd_out[k] = pd, pd_implicit_out[k] = pd_implicit, passive_out[k] = passive;
+      passive_implicit_out[k] = passive_implicit;
     }
   }
 }
