@@ -38,8 +38,8 @@ struct StepBatch {
   // q, v, tau (feedforward), wrench, inertia, gravity; qacc = last (v1 - v0) / h.
   // Wrenches written here act only with Stage::ExternalWrenches on (forced,
   // or after a set_link_wrench call); inertias only with
-  // Stage::PerCopyInertia on (forced, or after set_body_inertia, or a
-  // restore of a copy with inertias other than the model's).
+  // Stage::PerCopyInertia on (forced, or while set_body_inertia or a
+  // restore has given some copy inertias other than the model's).
   BatchState<T> state;
   BatchArray<T> target_q;  // (nq) drive target position (quaternions for Spherical joints)
   BatchArray<T> target_v;  // (nv) drive target velocity
