@@ -19,7 +19,6 @@ StepBatch<T>::StepBatch(const Model& model, int copies, int width, int rows)
       initial_q(copies, model.nq, width), initial_v(copies, model.nv, width), fault(copies, 1, width) {
   target_q.set_all(model.neutral_configuration());
   initial_q.set_all(model.neutral_configuration());
-  armature.set_all(Eigen::Map<const Eigen::VectorXd>(model.dof_armature.data(), model.nv));
 }
 
 template <class T>

@@ -7,6 +7,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <tuple>
 
 namespace lockstep {
 
@@ -114,18 +115,17 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
       *a = BatchArray<T>(copies, nv, kWidth);
   const JointParameters scene = scene_joint_parameters(model, dofs);
-  const std::pair<BatchArray<T>*, const Eigen::VectorXd*> joint_parameters[] = {
-      {&batch_.drive_stiffness, &scene.drive_stiffness},
-      {&scene_drive_stiffness_, &scene.drive_stiffness},
-      {&batch_.drive_damping, &scene.drive_damping},
-      {&scene_drive_damping_, &scene.drive_damping},
-      {&batch_.joint_damping, &scene.damping},
-      {&scene_damping_, &scene.damping},
-      {&batch_.armature, &scene.armature},
-      {&scene_armature_, &scene.armature},
-      {&batch_.joint_friction, &scene.friction},
-      {&scene_friction_, &scene.friction}};
-  for (const auto& [array, values] : joint_parameters) array->set_all(*values);
+  // every copy's per-DOF parameters, and the one block read while no copy has its own
+  const std::tuple<BatchArray<T>*, BatchArray<T>*, const Eigen::VectorXd*> joint_parameters[] = {
+      {&batch_.drive_stiffness, &scene_drive_stiffness_, &scene.drive_stiffness},
+      {&batch_.drive_damping, &scene_drive_damping_, &scene.drive_damping},
+      {&batch_.joint_damping, &scene_damping_, &scene.damping},
+      {&batch_.armature, &scene_armature_, &scene.armature},
+      {&batch_.joint_friction, &scene_friction_, &scene.friction}};
+  for (const auto& [per_copy, shared, values] : joint_parameters) {
+    per_copy->set_all(*values);
+    shared->set_all(*values);
+  }
   // The armature is per copy (StepBatch::armature): the step's ABA and CRBA
   // take it with the implicit diagonal (StepJointTerms), not from km_.
   std::fill(km_.dof_armature.begin(), km_.dof_armature.end(), T(0));

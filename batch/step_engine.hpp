@@ -11,7 +11,6 @@
 #include "kernels/joint_rows.hpp"
 #include "kernels/joint_terms.hpp"
 
-
 #include <chrono>
 #include <memory>
 

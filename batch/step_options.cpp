@@ -22,8 +22,7 @@ const char* stage_name(Stage stage) {
     case Stage::StribeckFriction: return "Stribeck friction";
     case Stage::ExternalWrenches: return "external wrenches";
     case Stage::PerCopyInertia: return "per-copy inertia";
-    case Stage::PerCopyJointParameters:
-      return "per-copy joint parameters";
+    case Stage::PerCopyJointParameters: return "per-copy joint parameters";
     case Stage::HardLimits: return "hard limits";
     case Stage::VelocityLimits: return "velocity limits";
     case Stage::CoulombFriction: return "Coulomb friction";
