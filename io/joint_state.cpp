@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "layout/name_hint.hpp"
+
 namespace lockstep {
 
 namespace {
@@ -39,7 +41,8 @@ int joint_body(const Model& model, const std::string& name, const std::string& w
     if (!a.floating_base && name == a.name + "_root")
       throw StateError(where + ": unknown joint \"" + name + "\": the model is fixed-base; its floating base " +
                        "(this name) exists with --floating-base (in a scene file: \"floating_base\": true)");
-  throw StateError(where + ": unknown joint \"" + name + "\" (run `lockstep info` to list the joints)");
+  throw StateError(where + ": unknown joint \"" + name + "\"" +
+                   (did_you_mean(name, model.joint_name) + " (run `lockstep info` to list the joints)"));
 }
 
 // Reads one entry into out[offset, offset + size).
@@ -111,7 +114,9 @@ JointState read_state(const Model& model, const json::Value& root, const std::st
     if (key == "q") part = Part::Q;
     else if (key == "qd") part = Part::Qd;
     else if (key == "tau") part = Part::Tau;
-    else throw StateError(source + ": unknown key \"" + key + "\" (expected \"q\", \"qd\" or \"tau\")");
+    else
+      throw StateError(source + ": unknown key \"" + key + "\"" + did_you_mean(key, {"q", "qd", "tau"}) +
+                       " (expected \"q\", \"qd\" or \"tau\")");
     Eigen::VectorXd& out = part == Part::Q ? state.q : part == Part::Qd ? state.v : state.tau;
     read_entries(model, entries, source + ": " + part_name(part), part, out);
   }

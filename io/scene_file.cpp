@@ -4,6 +4,7 @@
 #include "io/joint_state.hpp"
 #include "io/json.hpp"
 #include "io/urdf_import.hpp"
+#include "layout/name_hint.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -86,7 +87,10 @@ class Object {
       if (std::find(keys.begin(), keys.end(), member.first) == keys.end()) {
         std::string known;
         for (const std::string& k : keys) known += (known.empty() ? "" : ", ") + k;
-        at_.key(member.first).fail("unknown key (expected one of: " + known + ")");
+        const std::string closest = closest_name(member.first, keys);
+        at_.key(member.first)
+            .fail("unknown key" + (closest.empty() ? std::string() : "; did you mean \"" + closest + "\"?") +
+                  " (expected one of: " + known + ")");
       }
   }
 
@@ -140,11 +144,13 @@ template <class E, std::size_t N>
 E read_token(const json::Value& v, const At& at, const Token<E> (&tokens)[N]) {
   const std::string& name = read_string(v, at);
   std::string known;
+  std::vector<std::string> names;
   for (const Token<E>& t : tokens) {
     if (name == t.name) return t.value;
     known += std::string(known.empty() ? "" : ", ") + "\"" + t.name + "\"";
+    names.emplace_back(t.name);
   }
-  at.fail("unknown value \"" + name + "\" (expected one of: " + known + ")");
+  at.fail("unknown value \"" + name + "\"" + did_you_mean(name, names) + " (expected one of: " + known + ")");
 }
 
 // An array of `size` finite numbers.
@@ -212,7 +218,8 @@ int actuated_joint(const Model& model, const std::string& name, const At& at) {
   }
   if (std::find(model.frame_joint_name.begin(), model.frame_joint_name.end(), name) != model.frame_joint_name.end())
     at.fail("joint \"" + name + "\" is fixed and has no DOF");
-  at.fail("unknown joint \"" + name + "\" (run `lockstep info` to list the joints)");
+  at.fail("unknown joint \"" + name + "\"" + did_you_mean(name, model.joint_name) +
+          " (run `lockstep info` to list the joints)");
 }
 
 // ---- drives and joint dynamics: a "default" entry for every DOF that is not
@@ -398,7 +405,7 @@ void read_boxes(const json::Value& v, const At& at, ContactSettings& c) {
 
 int link_frame(const Model& model, const std::string& name, const At& at) {
   const auto it = model.frame_by_name.find(name);
-  if (it == model.frame_by_name.end()) at.fail("unknown link \"" + name + "\"");
+  if (it == model.frame_by_name.end()) at.fail("unknown link \"" + name + "\"" + did_you_mean(name, model.frame_name));
   return it->second;
 }
 

@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "layout/name_hint.hpp"
+
 namespace lockstep {
 
 const char* joint_type_name(JointType type) {
@@ -49,21 +51,31 @@ const char* shape_type_name(ShapeType type) {
 }
 
 namespace {
-int lookup(const std::unordered_map<std::string, int>& map, const std::string& name, const char* what) {
+[[noreturn]] void throw_missing(const std::string& name, const char* what, const std::vector<std::string>& names) {
+  throw std::out_of_range(std::string("model has no ") + what + " named '" + name + "'" + did_you_mean(name, names));
+}
+
+int lookup(const std::unordered_map<std::string, int>& map, const std::string& name, const char* what,
+           const std::vector<std::string>& names) {
   const auto it = map.find(name);
-  if (it == map.end()) throw std::out_of_range(std::string("model has no ") + what + " named '" + name + "'");
+  if (it == map.end()) throw_missing(name, what, names);
   return it->second;
 }
 }  // namespace
 
-int Model::frame_index(const std::string& name) const { return lookup(frame_by_name, name, "link"); }
-int Model::joint_index(const std::string& name) const { return lookup(joint_by_name, name, "moving joint"); }
-int Model::dof_index(const std::string& name) const { return lookup(dof_by_name, name, "DOF"); }
+int Model::frame_index(const std::string& name) const { return lookup(frame_by_name, name, "link", frame_name); }
+int Model::joint_index(const std::string& name) const {
+  return lookup(joint_by_name, name, "moving joint", joint_name);
+}
+int Model::dof_index(const std::string& name) const { return lookup(dof_by_name, name, "DOF", dof_name); }
 
 int Model::articulation_index(const std::string& name) const {
-  for (std::size_t i = 0; i < articulations.size(); ++i)
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < articulations.size(); ++i) {
     if (articulations[i].name == name) return static_cast<int>(i);
-  throw std::out_of_range("model has no articulation named '" + name + "'");
+    names.push_back(articulations[i].name);
+  }
+  throw_missing(name, "articulation", names);
 }
 
 double Model::total_mass() const {

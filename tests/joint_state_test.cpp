@@ -114,7 +114,8 @@ TEST(CliState, ErrorsNameTheKey) {
   };
   expect_error(R"({"q": {"knee": 1}})", "q.knee: unknown joint \"knee\"");
   expect_error(R"({"qd": {"tip_joint": 1}})", "qd.tip_joint: joint \"tip_joint\" is fixed");
-  expect_error(R"({"qdd": {}})", "unknown key \"qdd\"");
+  expect_error(R"({"q": {"elbw": 1}})", "q.elbw: unknown joint \"elbw\" (did you mean \"elbow\"?)");
+  expect_error(R"({"qdd": {}})", "unknown key \"qdd\" (did you mean \"qd\"?)");
   expect_error(R"({"q": [1, 2]})", "q: expected an object keyed by joint name, got array");
   expect_error(R"([])", "expected an object");
   expect_error(R"({"q": {"elbow": [1]}})", "q.elbow: expected a number, got array");

@@ -4,6 +4,7 @@
 #include "io/json.hpp"
 #include "io/joint_state.hpp"
 #include "io/rollout_file.hpp"
+#include "layout/name_hint.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -72,6 +73,13 @@ const CommandUsage* find_command(const std::string& name) {
   return nullptr;
 }
 
+// " (did you mean \"rollout\"?)" for a misspelled command, or empty.
+std::string command_hint(const std::string& name) {
+  std::vector<std::string> names;
+  for (const CommandUsage& c : kCommands) names.emplace_back(c.name);
+  return did_you_mean(name, names);
+}
+
 // The whole usage, or one command's.
 std::string usage(const CommandUsage* only = nullptr) {
   std::string text = "usage: lockstep <command> [arguments]\n\n";
@@ -124,7 +132,9 @@ ParsedArgs parse_args(const std::vector<std::string>& args, const std::vector<st
       if (parsed.value(name)) throw UsageError("option " + name + " given twice");
       parsed.options.emplace_back(name, value);
     } else {
-      throw UsageError("unknown option " + name);
+      std::vector<std::string> known = flags;
+      known.insert(known.end(), options.begin(), options.end());
+      throw UsageError("unknown option " + name + did_you_mean(name, known));
     }
   }
   return parsed;
@@ -223,12 +233,13 @@ int main(int argc, char** argv, std::ostream& out, std::ostream& err) {
     if (command == "help" || command == "--help" || command == "-h") {
       if (args.size() > 1) throw UsageError("help takes at most one command");
       const CommandUsage* about = args.empty() ? nullptr : find_command(args.front());
-      if (!args.empty() && !about) throw UsageError("no command \"" + args.front() + "\"");
+      if (!args.empty() && !about)
+        throw UsageError("no command \"" + args.front() + "\"" + command_hint(args.front()));
       out << usage(about);
       return kExitOk;
     }
     known = nullptr;
-    throw UsageError("unknown command \"" + command + "\"");
+    throw UsageError("unknown command \"" + command + "\"" + command_hint(command));
   } catch (const UsageError& e) {
     err << "lockstep" << (known ? std::string(" ") + known->name : std::string()) << ": " << e.what() << "\n\n"
         << usage(known && known->name != std::string("help") ? known : nullptr);
