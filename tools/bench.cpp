@@ -11,6 +11,7 @@
 #endif
 
 #include <tbb/global_control.h>
+#include <tbb/info.h>
 
 #include <algorithm>
 #include <chrono>
@@ -76,7 +77,9 @@ struct PrecisionResult {
   bool contacts = false;       // the contact stage runs
 };
 
-// The CPU's model name as Linux reports it, and its hardware threads.
+// The CPU's model name as Linux reports it, its hardware threads, and how
+// many of them this process may run on when that is fewer (taskset, cgroup
+// cpusets).
 std::string machine_description() {
   std::ifstream cpuinfo("/proc/cpuinfo");
   std::string name = "unknown CPU";
@@ -85,7 +88,10 @@ std::string machine_description() {
       name = line.substr(line.find(':') + 2);
       break;
     }
-  return name + ", " + std::to_string(std::thread::hardware_concurrency()) + " hardware threads";
+  const int hardware = static_cast<int>(std::thread::hardware_concurrency());
+  const int usable = tbb::info::default_concurrency();
+  return name + ", " + std::to_string(hardware) + " hardware threads" +
+         (usable < hardware ? " (" + std::to_string(usable) + " usable by this process)" : "");
 }
 
 std::string default_model() {
@@ -301,9 +307,9 @@ void print_text(const BenchReport& r, std::ostream& out) {
   if (c.mujoco) out << " (MuJoCo: " << count_of(c.mujoco_steps, "step") << " of one mjData per thread)";
   out << ", after a warm-up\n";
   const int most = *std::max_element(c.threads.begin(), c.threads.end());
-  const int hardware = static_cast<int>(std::thread::hardware_concurrency());
-  if (hardware > 0 && most > hardware)
-    out << "note: " << count_of(most, "thread") << " on " << count_of(hardware, "hardware thread")
+  const int usable = tbb::info::default_concurrency();
+  if (most > usable)
+    out << "note: " << count_of(most, "thread") << " on " << count_of(usable, "usable hardware thread")
         << ": the per-core columns divide by the threads asked for, not the cores used\n";
   out << "\n";
 

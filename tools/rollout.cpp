@@ -7,6 +7,7 @@
 #include "tools/step_scene.hpp"
 
 #include <tbb/global_control.h>
+#include <tbb/info.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -19,7 +20,6 @@
 #include <optional>
 #include <ostream>
 #include <sstream>
-#include <thread>
 
 namespace lockstep::cli {
 
@@ -57,7 +57,7 @@ struct RolloutConfig {
   int envs = 1024;
   std::int64_t steps = 500;
   PolicyKind policy = PolicyKind::Hold;
-  int threads = 0;  // 0: all cores
+  int threads = 0;  // 0: every core this process may run on
   std::optional<Precision> precision;
   std::optional<std::uint64_t> seed;
   std::optional<int> episode_steps;
@@ -161,7 +161,8 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   if (config.precision) scene.env.step.precision = *config.precision;
   if (config.seed) scene.env.seed = *config.seed;
   if (config.episode_steps) scene.env.episode_steps = *config.episode_steps;
-  const int threads = config.threads > 0 ? config.threads : static_cast<int>(std::thread::hardware_concurrency());
+  // by default every hardware thread this process may run on (its affinity mask)
+  const int threads = config.threads > 0 ? config.threads : tbb::info::default_concurrency();
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
 
   VecEnv env(scene.model, config.envs, scene.env);
