@@ -102,6 +102,12 @@ Eigen::VectorXd read_configuration(const Model& model, const json::Value& entrie
   return q;
 }
 
+Eigen::VectorXd read_velocity(const Model& model, const json::Value& entries, const std::string& where) {
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(model.nv);
+  read_entries(model, entries, where, Part::Qd, v);
+  return v;
+}
+
 JointState read_state(const Model& model, const json::Value& root, const std::string& source) {
   JointState state;
   state.q = model.neutral_configuration();

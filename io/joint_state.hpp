@@ -36,5 +36,8 @@ JointState read_state(const Model& model, const json::Value& root, const std::st
 // of the state's "q": joints not given are neutral. Errors are named
 // `where.joint`.
 Eigen::VectorXd read_configuration(const Model& model, const json::Value& entries, const std::string& where);
+// The same for one velocity (nv) in the format of the state's "qd": joints
+// not given are at rest.
+Eigen::VectorXd read_velocity(const Model& model, const json::Value& entries, const std::string& where);
 
 }  // namespace lockstep

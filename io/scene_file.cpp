@@ -308,15 +308,18 @@ void warn_outside_limits(const Model& model, const json::Value& named, const Eig
 
 void read_initial_state(const json::Value& v, const At& at, const Model& model, VecEnvOptions& env,
                         std::vector<std::string>& warnings) {
-  const Object keys(v, at, {"q", "qd"});  // read_state would also take "tau"
+  const Object keys(v, at, {"q", "qd"});
+  const json::Value* q = v.find("q");
+  const json::Value* qd = v.find("qd");
+  // Errors name the key path as every other scene error: initial_state.q.FL_knee.
+  const auto where = [&](const char* key) { return at.file + ": " + at.key(key).path; };
   try {
-    const JointState state = read_state(model, v, at.file + ": " + at.path);
-    env.initial_q = state.q;
-    env.initial_v = state.v;
+    env.initial_q = q ? read_configuration(model, *q, where("q")) : model.neutral_configuration();
+    env.initial_v = qd ? read_velocity(model, *qd, where("qd")) : Eigen::VectorXd::Zero(model.nv);
   } catch (const StateError& e) {
     throw SceneError(e.what());
   }
-  if (const json::Value* q = v.find("q")) warn_outside_limits(model, *q, env.initial_q, at.key("q"), warnings);
+  if (q) warn_outside_limits(model, *q, env.initial_q, at.key("q"), warnings);
 }
 
 // Drive targets: joint-name keyed like initial_state's "q".
