@@ -124,11 +124,6 @@ inline L select(const mask_t<L>& m, const L& a, const L& b) {
   if constexpr (is_scalar_v<L>) return m ? a : b;
   else return xsimd::select(m, a, b);
 }
-template <class L>
-inline L atan2(const L& y, const L& x) {
-  if constexpr (is_scalar_v<L>) return std::atan2(y, x);
-  else return xsimd::atan2(y, x);
-}
 // True in lanes that hold a finite number.
 template <class L>
 inline mask_t<L> is_finite(const L& x) {
@@ -220,6 +215,51 @@ inline void sincos(const L& x, L& s, L& c) {
   const L c0 = select(swap, sin_r, cos_r);
   s = select(k >= L(T(2)), -s0, s0);
   c = select((k == L(T(1))) || (k == L(T(2))), -c0, c0);
+}
+
+// atan2(y, x) in (-pi, pi] for finite y and x, to about 2 ulps, the same
+// code on both lane types (libm's and xsimd's round differently, which made
+// SIMD lanes differ from the scalar reference). Cephes' atan: with
+// t = min(|y|, |x|) / max(|y|, |x|) in [0, 1], t above tan(pi/8) is reduced
+// by atan t = pi/4 + atan((t - 1)/(t + 1)); then atan of the reduced t by
+// Cephes' minimax polynomial (float) or P/Q rational function (double);
+// then pi/2 - a where |y| > |x|, pi - a where x < 0, and y's sign (a -0 y
+// counts as +0). atan2(0, 0) is 0. Angles near pi/2, pi/4 and pi are formed
+// from two-part constants, so their rounding stays under an ulp.
+template <class L>
+inline L atan2(const L& y, const L& x) {
+  using T = scalar_t<L>;
+  const L ay = abs(y), ax = abs(x);
+  const L num = min(ay, ax), den = max(ay, ax);
+  const L zero(T(0)), one(T(1));
+  const L t0 = select(den > zero, num / select(den > zero, den, one), zero);
+  const auto reduce = t0 > L(T(0.41421356237309504880));  // tan(pi/8)
+  const L t = select(reduce, (t0 - one) / (t0 + one), t0);
+  const L z = t * t;
+  L p;
+  if constexpr (std::is_same_v<T, float>) {
+    p = fmadd(fmadd(fmadd(L(8.05374449538e-2f), z, L(-1.38776856032e-1f)), z, L(1.99777106478e-1f)), z,
+              L(-3.33329491539e-1f));
+    p = p * z;
+  } else {
+    const L P = fmadd(fmadd(fmadd(fmadd(L(-8.750608600031904122785e-1), z, L(-1.615753718733365076637e1)), z,
+                                  L(-7.500855792314704667340e1)), z, L(-1.228866684490136173410e2)), z,
+                      L(-6.485021904942025371773e1));
+    const L Q = fmadd(fmadd(fmadd(fmadd(z + L(2.485846490142306297962e1), z, L(1.650270098316988542046e2)), z,
+                                  L(4.328810604912902668951e2)), z, L(4.853903996359136964868e2)), z,
+                      L(1.945506571482613964425e2));
+    p = z * P / Q;
+  }
+  // pi/4, pi/2 and pi as hi + lo: hi the nearest T, lo the rest.
+  constexpr bool f = std::is_same_v<T, float>;
+  constexpr T pi_4_hi = f ? T(0.785398185f) : T(0.78539816339744828), pi_4_lo = f ? T(-2.1855695e-08f) : T(3.061616997868383e-17);
+  constexpr T pi_2_hi = f ? T(1.57079637f) : T(1.5707963267948966), pi_2_lo = f ? T(-4.371139e-08f) : T(6.123233995736766e-17);
+  constexpr T pi_hi = f ? T(3.14159274f) : T(3.1415926535897931), pi_lo = f ? T(-8.742278e-08f) : T(1.2246467991473532e-16);
+  // atan t = t + t p (+ pi/4 where reduced), the small parts summed first.
+  const L a = select(reduce, L(pi_4_hi) + (fmadd(t, p, L(pi_4_lo)) + t), fmadd(t, p, t));
+  const L b = select(ay > ax, L(pi_2_hi) - (a - L(pi_2_lo)), a);
+  const L c = select(x < zero, L(pi_hi) - (b - L(pi_lo)), b);
+  return select(y < zero, -c, c);
 }
 
 }  // namespace lockstep::lane
