@@ -27,7 +27,17 @@ set(LOCKSTEP_PUBLIC_FLAGS -ffp-contract=off -fno-fast-math)
 if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
   list(APPEND LOCKSTEP_PUBLIC_FLAGS -fno-tree-slp-vectorize)
 endif()
+# The instruction set: LOCKSTEP_MARCH (native by default), or baseline
+# x86-64 with LOCKSTEP_PORTABLE. Results depend on it in one way only: a
+# target with FMA (x86-64-v3 and newer, native on any AVX2 or AVX-512 CPU)
+# fuses lane::fmadd, one without (x86-64) rounds a*b+c twice. The SIMD width
+# does not change a copy's bits: each lane computes the scalar reference.
 if(LOCKSTEP_PORTABLE)
+  set(LOCKSTEP_MARCH_USED x86-64)
+else()
+  set(LOCKSTEP_MARCH_USED ${LOCKSTEP_MARCH})
+endif()
+if(LOCKSTEP_MARCH_USED STREQUAL "x86-64")
   set(LOCKSTEP_ARCH_FLAGS -march=x86-64 -mtune=generic)
 else()
   # With AVX-512, compilers default to 256-bit vectors for the code they
@@ -35,7 +45,7 @@ else()
   # then reloaded from two 32-byte stores misses store-to-load forwarding,
   # a stall of about 15 cycles each, all through the kernels. Whole-width
   # vectors keep their copies the width of the lanes.
-  set(LOCKSTEP_ARCH_FLAGS -march=native -mprefer-vector-width=512)
+  set(LOCKSTEP_ARCH_FLAGS -march=${LOCKSTEP_MARCH_USED} -mprefer-vector-width=512)
 endif()
 list(APPEND LOCKSTEP_PUBLIC_FLAGS ${LOCKSTEP_ARCH_FLAGS})
 
