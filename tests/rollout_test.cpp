@@ -1,13 +1,15 @@
 // Rollouts end to end: a vectorised environment recorded to a rollout file,
 // read back, replayed bit for bit from the stored scene, initial state and
 // actions; the same file whatever the thread count; `lockstep rollout`
-// killed with SIGKILL leaves a readable, finite, incomplete file.
+// killed with SIGKILL leaves a readable, finite, incomplete file; its default
+// thread count follows the CPU affinity.
 #include "io/rollout_recorder.hpp"
 #include "io/scene_file.hpp"
 #include "io/sha256.hpp"
 #include "tools/rollout_policy.hpp"
 
 #include <gtest/gtest.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <tbb/global_control.h>
@@ -212,6 +214,33 @@ std::pair<int, std::int64_t> interrupt_rollout(const std::string& file, int sign
   int status = 0;
   ::waitpid(child, &status, 0);
   return {status, seen};
+}
+
+// `lockstep rollout` without --threads runs as many threads as its process
+// may use: pinned to one CPU (one this test may use, inherited by the child
+// through fork and exec), one thread, as its file's "threads" attribute says.
+TEST(Rollout, DefaultThreadsFollowTheCpuAffinity) {
+  const TempDir dir;
+  const std::string file = (dir.path / "pinned.h5").string();
+  cpu_set_t allowed;
+  ASSERT_EQ(::sched_getaffinity(0, sizeof(allowed), &allowed), 0);
+  int cpu = 0;
+  while (!CPU_ISSET(cpu, &allowed)) ++cpu;
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    cpu_set_t one;
+    CPU_ZERO(&one);
+    CPU_SET(cpu, &one);
+    if (::sched_setaffinity(0, sizeof(one), &one) != 0) ::_exit(126);
+    ::execl(LOCKSTEP_TOOL_PATH, "lockstep", "rollout", bundled_scene().c_str(), "--envs", "8", "--steps", "2",
+            "--out", file.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "status " << status;
+  EXPECT_EQ(std::get<std::int64_t>(RolloutReader(file).attribute("threads")), 1);
 }
 
 // The file after an interrupted rollout opens, holds at least `seen` steps,
