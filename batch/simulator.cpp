@@ -39,6 +39,48 @@ template struct StepBatch<double>;
 
 namespace {
 
+// FNV-1a, 64 bits, over what gives a snapshot's arrays their meaning: the
+// bodies' joints (name, type, q and DOF offsets), the links, and the
+// contact pairs (their shapes, bodies and candidate numbering, which the
+// warm start's contact ids refer to).
+class SceneKey {
+ public:
+  void add(std::uint64_t x) {
+    for (int k = 0; k < 8; ++k) add_byte(static_cast<unsigned char>(x >> (8 * k)));
+  }
+  void add(const std::string& s) {
+    add(s.size());
+    for (unsigned char c : s) add_byte(c);
+  }
+  std::uint64_t value() const { return hash_; }
+
+ private:
+  void add_byte(unsigned char c) {
+    hash_ ^= c;
+    hash_ *= 0x100000001b3u;  // the FNV prime
+  }
+  std::uint64_t hash_ = 0xcbf29ce484222325u;  // the FNV offset basis
+};
+
+std::uint64_t scene_key_of(const Model& model, const ContactPairs& pairs) {
+  SceneKey key;
+  key.add(static_cast<std::uint64_t>(model.nbody));
+  for (int b = 0; b < model.nbody; ++b) {
+    key.add(model.joint_name[b]);
+    key.add(static_cast<std::uint64_t>(model.body_joint[b]));
+    key.add(static_cast<std::uint64_t>(model.body_parent[b] + 1));
+    key.add(static_cast<std::uint64_t>(model.body_q_offset[b]));
+    key.add(static_cast<std::uint64_t>(model.body_dof_offset[b]));
+  }
+  for (const std::string& frame : model.frame_name) key.add(frame);
+  key.add(pairs.pairs.size());
+  for (const ContactPair& pair : pairs.pairs)
+    for (const int x : {static_cast<int>(pair.kind), pair.a.shape, pair.a.body, pair.b.shape, pair.b.body,
+                        pair.first_candidate})
+      key.add(static_cast<std::uint64_t>(static_cast<std::int64_t>(x)));
+  return key.value();
+}
+
 // Whether the copy's entries [first, first + values.size()) of `a` differ
 // from `values`, as the batch's precision holds them.
 template <class T>
@@ -180,6 +222,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   validate(model, copies, options_, dofs_);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
+  scene_key_ = scene_key_of(model, pairs_);
   own_inertia_bodies_.assign(copies, 0);
   own_joint_parameters_.assign(copies, 0);
   model_inertia_ = BatchState<double>::model_inertia_params(model);
@@ -439,7 +482,7 @@ CopySnapshot Simulator::snapshot(int copy) const {
       at += a->size();
     }
     return CopySnapshot{b.state.q.get(copy), b.state.v.get(copy), b.impulse.get(copy), b.contact_id.get(copy),
-                        b.contact_impulse.get(copy), parameters};
+                        b.contact_impulse.get(copy), parameters, scene_key_};
   });
 }
 
@@ -452,6 +495,9 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     int size = 0;
     for (const auto* a : copy_parameters(b)) size += a->size();
     require(s.parameters.size() == size, "restore: the snapshot's parameters do not match this simulator's scene");
+    require(s.scene_key == 0 || s.scene_key == scene_key_,
+            "restore: the snapshot was taken from another scene (its model's joints or links, or its contact "
+            "pairs, differ from this simulator's)");
     int at = 0;
     for (auto* a : copy_parameters(b)) {
       a->set(copy, s.parameters.segment(at, a->size()));

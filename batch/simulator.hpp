@@ -13,6 +13,8 @@
 // structure-of-arrays storage directly (T = the chosen precision).
 #pragma once
 
+#include <cstdint>
+
 #include "batch/build_info.hpp"
 #include "batch/contact_pairs.hpp"
 #include "batch/step_options.hpp"
@@ -114,6 +116,10 @@ struct Contact {
 // for bit.
 struct CopySnapshot {
   Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, parameters;
+  // Simulator::scene_key() of the simulator it came from: restore refuses a
+  // snapshot of another scene whose arrays happen to have the same sizes.
+  // 0 (a snapshot put together by hand) is not checked.
+  std::uint64_t scene_key = 0;
 };
 
 // CPU seconds per phase of the steps taken while profiling
@@ -228,6 +234,11 @@ class Simulator {
   template <class T>
   const StepBatch<T>& batch() const;
   std::size_t bytes_per_copy() const;
+  // What a snapshot's arrays mean: a hash of the model's joints and links
+  // (names, types, DOF layout), the contact pairs and their warm-start
+  // numbering, and the solver rows. Simulators built alike have the same
+  // key whatever their precision, lanes or copy count.
+  std::uint64_t scene_key() const { return scene_key_; }
 
   struct Engine;  // the pipeline for one lane type
 
@@ -275,6 +286,7 @@ class Simulator {
   mutable std::vector<StageDecision> plan_;
   mutable bool plan_stale_ = false;
   ContactPairs pairs_;
+  std::uint64_t scene_key_ = 0;
   double time_ = 0.0;
   bool per_copy_gains_ = false;  // set_drive_gains gave some copy a drive
   bool per_copy_damping_ = false;  // set_joint_damping gave some copy damping

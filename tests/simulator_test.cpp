@@ -272,6 +272,40 @@ TEST(Simulator, StribeckFrictionFollowsItsCurve) {
   }
 }
 
+// A snapshot belongs to its scene: restored into a simulator of another
+// model whose arrays have the same sizes (one revolute link each, other
+// names), it is refused; into one built alike, in the other precision and
+// with more copies, it is taken; a snapshot put together by hand
+// (scene_key 0) is not checked.
+TEST(Simulator, RestoreRefusesASnapshotOfAnotherScene) {
+  const Model wheel = spinner(0.1);
+  const Model arm =
+      test::build(test::one_link_spec("elbow", "forearm", JointType::Revolute, Eigen::Vector3d::Constant(0.1)));
+  Simulator a(wheel, 2, double_options(0.01));
+  a.set_state(0, Eigen::VectorXd::Constant(1, 0.3), Eigen::VectorXd::Constant(1, 2.0));
+  a.step();
+  const CopySnapshot snapshot = a.snapshot(0);
+  Simulator other(arm, 2, double_options(0.01));
+  ASSERT_NE(other.scene_key(), a.scene_key());
+  try {
+    other.restore(1, snapshot);
+    ADD_FAILURE() << "a snapshot of another scene was restored";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("restore: the snapshot was taken from another scene"), std::string::npos)
+        << e.what();
+  }
+  StepOptions float_options = double_options(0.01);
+  float_options.precision = Precision::Float;
+  Simulator alike(wheel, 5, float_options);
+  EXPECT_EQ(alike.scene_key(), a.scene_key());
+  alike.restore(4, snapshot);
+  EXPECT_EQ(alike.q(4)[0], static_cast<double>(static_cast<float>(snapshot.q[0])));
+  CopySnapshot by_hand = snapshot;
+  by_hand.scene_key = 0;
+  other.restore(1, by_hand);
+  EXPECT_EQ(other.q(1)[0], snapshot.q[0]);
+}
+
 // URDF effort, velocity, damping and friction are the defaults.
 TEST(Simulator, UrdfValuesAreTheDefaults) {
   const Model model = test::load_shared_model("anymal_b", true);
