@@ -29,13 +29,14 @@ void note_allocation() {
 
 }  // namespace
 
-// AddressSanitizer replaces malloc and its kin itself: memory it hands out
-// must not reach glibc's free, so under it nothing below is defined and
-// the tests skip (the release build counts).
-#if defined(__SANITIZE_ADDRESS__)
+// AddressSanitizer and ThreadSanitizer replace malloc and its kin
+// themselves: memory they hand out must not reach glibc's free, so under
+// them nothing below is defined and the tests skip (the release build
+// counts).
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 #define LOCKSTEP_COUNTS_ALLOCATIONS 0
 #elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
 #define LOCKSTEP_COUNTS_ALLOCATIONS 0
 #endif
 #endif
@@ -87,7 +88,7 @@ namespace lockstep {
 namespace {
 
 constexpr bool kCounts = LOCKSTEP_COUNTS_ALLOCATIONS;
-constexpr const char* kNotCounted = "AddressSanitizer owns malloc here: the release build counts allocations";
+constexpr const char* kNotCounted = "a sanitizer owns malloc here: the release build counts allocations";
 
 // Allocations made by f.
 template <class F>
