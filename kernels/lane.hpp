@@ -252,9 +252,12 @@ inline L atan2(const L& y, const L& x) {
   }
   // pi/4, pi/2 and pi as hi + lo: hi the nearest T, lo the rest.
   constexpr bool f = std::is_same_v<T, float>;
-  constexpr T pi_4_hi = f ? T(0.785398185f) : T(0.78539816339744828), pi_4_lo = f ? T(-2.1855695e-08f) : T(3.061616997868383e-17);
-  constexpr T pi_2_hi = f ? T(1.57079637f) : T(1.5707963267948966), pi_2_lo = f ? T(-4.371139e-08f) : T(6.123233995736766e-17);
-  constexpr T pi_hi = f ? T(3.14159274f) : T(3.1415926535897931), pi_lo = f ? T(-8.742278e-08f) : T(1.2246467991473532e-16);
+  constexpr T pi_4_hi = f ? T(0.785398185f) : T(0.78539816339744828);
+  constexpr T pi_4_lo = f ? T(-2.1855695e-08f) : T(3.061616997868383e-17);
+  constexpr T pi_2_hi = f ? T(1.57079637f) : T(1.5707963267948966);
+  constexpr T pi_2_lo = f ? T(-4.371139e-08f) : T(6.123233995736766e-17);
+  constexpr T pi_hi = f ? T(3.14159274f) : T(3.1415926535897931);
+  constexpr T pi_lo = f ? T(-8.742278e-08f) : T(1.2246467991473532e-16);
   // atan t = t + t p (+ pi/4 where reduced), the small parts summed first.
   const L a = select(reduce, L(pi_4_hi) + (fmadd(t, p, L(pi_4_lo)) + t), fmadd(t, p, t));
   const L b = select(ay > ax, L(pi_2_hi) - (a - L(pi_2_lo)), a);
