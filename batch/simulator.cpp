@@ -40,9 +40,10 @@ template struct StepBatch<double>;
 namespace {
 
 // FNV-1a, 64 bits, over what gives a snapshot's arrays their meaning: the
-// bodies' joints (name, type, q and DOF offsets), the links, and the
-// contact pairs (their shapes, bodies and candidate numbering, which the
-// warm start's contact ids refer to).
+// bodies' joints (name, type, q and DOF offsets), the links, the joint rows
+// (kind and DOF of each warm-started impulse) and the contact pairs (their
+// shapes, bodies and candidate numbering, which the warm start's contact
+// ids refer to).
 class SceneKey {
  public:
   void add(std::uint64_t x) {
@@ -62,7 +63,8 @@ class SceneKey {
   std::uint64_t hash_ = 0xcbf29ce484222325u;  // the FNV offset basis
 };
 
-std::uint64_t scene_key_of(const Model& model, const ContactPairs& pairs) {
+std::uint64_t scene_key_of(const Model& model, const std::vector<std::pair<int, int>>& rows,
+                           const ContactPairs& pairs) {
   SceneKey key;
   key.add(static_cast<std::uint64_t>(model.nbody));
   for (int b = 0; b < model.nbody; ++b) {
@@ -73,6 +75,11 @@ std::uint64_t scene_key_of(const Model& model, const ContactPairs& pairs) {
     key.add(static_cast<std::uint64_t>(model.body_dof_offset[b]));
   }
   for (const std::string& frame : model.frame_name) key.add(frame);
+  key.add(rows.size());
+  for (const auto& [kind, dof] : rows) {
+    key.add(static_cast<std::uint64_t>(kind));
+    key.add(static_cast<std::uint64_t>(dof));
+  }
   key.add(pairs.pairs.size());
   for (const ContactPair& pair : pairs.pairs)
     for (const int x : {static_cast<int>(pair.kind), pair.a.shape, pair.a.body, pair.b.shape, pair.b.body,
@@ -222,7 +229,6 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   validate(model, copies, options_, dofs_);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
-  scene_key_ = scene_key_of(model, pairs_);
   own_inertia_bodies_.assign(copies, 0);
   own_joint_parameters_.assign(copies, 0);
   model_inertia_ = BatchState<double>::model_inertia_params(model);
@@ -249,6 +255,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
     if (simd) start(std::make_unique<StepEngine<lane::simd<double>>>(model, copies, options_, dofs_, plan, pairs_));
     else start(std::make_unique<StepEngine<double>>(model, copies, options_, dofs_, plan, pairs_));
   }
+  scene_key_ = scene_key_of(model, engine_->row_layout(), pairs_);
 }
 
 Simulator::~Simulator() = default;

@@ -235,9 +235,9 @@ class Simulator {
   const StepBatch<T>& batch() const;
   std::size_t bytes_per_copy() const;
   // What a snapshot's arrays mean: a hash of the model's joints and links
-  // (names, types, DOF layout), the contact pairs and their warm-start
-  // numbering, and the solver rows. Simulators built alike have the same
-  // key whatever their precision, lanes or copy count.
+  // (names, types, DOF layout), the joint rows (kind and DOF), and the
+  // contact pairs with their warm-start numbering. Simulators built alike
+  // have the same key whatever their precision, lanes or copy count.
   std::uint64_t scene_key() const { return scene_key_; }
 
   struct Engine;  // the pipeline for one lane type

@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <memory>
+#include <utility>
 
 namespace lockstep {
 
@@ -38,6 +39,9 @@ struct Simulator::Engine {
   virtual void set_plan(const StepPlan& plan) = 0;
   virtual int copies() const = 0;
   virtual int rows() const = 0;
+  // Each joint row's kind and DOF, in row order: what the warm start's
+  // joint impulses belong to.
+  virtual std::vector<std::pair<int, int>> row_layout() const = 0;
   virtual std::size_t bytes_per_copy() const = 0;
 };
 
@@ -57,6 +61,11 @@ class StepEngine final : public Simulator::Engine {
   StepProfile profile() const override;
   int copies() const override { return batch_.copies(); }
   int rows() const override { return static_cast<int>(row_specs_.size()); }
+  std::vector<std::pair<int, int>> row_layout() const override {
+    std::vector<std::pair<int, int>> layout;
+    for (const JointRowSpec<T>& row : row_specs_) layout.emplace_back(static_cast<int>(row.kind), row.dof);
+    return layout;
+  }
   std::size_t bytes_per_copy() const override { return batch_.bytes_per_copy(); }
 
   StepBatch<T>& batch() { return batch_; }

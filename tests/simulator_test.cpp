@@ -306,6 +306,22 @@ TEST(Simulator, RestoreRefusesASnapshotOfAnotherScene) {
   EXPECT_EQ(other.q(1)[0], snapshot.q[0]);
 }
 
+// Of one model, a scene whose joint row is a position limit and one whose
+// row is a velocity limit keep warm starts of the same size that mean
+// different things: their keys differ, and restore refuses the other's.
+TEST(Simulator, RestoreRefusesASnapshotWithOtherJointRows) {
+  const Model wheel = spinner(0.1);
+  std::vector<DofSettings> limited = default_dof_settings(wheel), fast = limited;
+  limited[0].lower = -1.0, limited[0].upper = 1.0;
+  fast[0].velocity_limit = 5.0;
+  Simulator a(wheel, 1, double_options(0.01), limited), b(wheel, 1, double_options(0.01), fast);
+  ASSERT_EQ(a.row_count(), 1);
+  ASSERT_EQ(b.row_count(), 1);
+  EXPECT_NE(a.scene_key(), b.scene_key());
+  EXPECT_THROW(b.restore(0, a.snapshot(0)), std::invalid_argument);
+  EXPECT_NO_THROW(a.restore(0, a.snapshot(0)));
+}
+
 // URDF effort, velocity, damping and friction are the defaults.
 TEST(Simulator, UrdfValuesAreTheDefaults) {
   const Model model = test::load_shared_model("anymal_b", true);
