@@ -503,8 +503,8 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     for (const auto* a : copy_parameters(b)) size += a->size();
     require(s.parameters.size() == size, "restore: the snapshot's parameters do not match this simulator's scene");
     require(s.scene_key == 0 || s.scene_key == scene_key_,
-            "restore: the snapshot was taken from another scene (its model's joints or links, or its contact "
-            "pairs, differ from this simulator's)");
+            "restore: the snapshot was taken from another scene (its model's joints or links, its joint rows "
+            "or its contact pairs differ from this simulator's)");
     int at = 0;
     for (auto* a : copy_parameters(b)) {
       a->set(copy, s.parameters.segment(at, a->size()));
