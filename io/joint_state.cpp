@@ -41,8 +41,8 @@ int joint_body(const Model& model, const std::string& name, const std::string& w
     if (!a.floating_base && name == a.name + "_root")
       throw StateError(where + ": unknown joint \"" + name + "\": the model is fixed-base; its floating base " +
                        "(this name) exists with --floating-base (in a scene file: \"floating_base\": true)");
-  throw StateError(where + ": unknown joint \"" + name + "\"" +
-                   (did_you_mean(name, model.joint_name) + " (run `lockstep info` to list the joints)"));
+  throw StateError(where + ": unknown joint \"" + name + "\"" + did_you_mean(name, model.joint_name) +
+                   " (run `lockstep info` to list the joints)");
 }
 
 // Reads one entry into out[offset, offset + size).

@@ -87,10 +87,8 @@ class Object {
       if (std::find(keys.begin(), keys.end(), member.first) == keys.end()) {
         std::string known;
         for (const std::string& k : keys) known += (known.empty() ? "" : ", ") + k;
-        const std::string closest = closest_name(member.first, keys);
         at_.key(member.first)
-            .fail("unknown key" + (closest.empty() ? std::string() : "; did you mean \"" + closest + "\"?") +
-                  " (expected one of: " + known + ")");
+            .fail("unknown key" + did_you_mean(member.first, keys) + " (expected one of: " + known + ")");
       }
   }
 

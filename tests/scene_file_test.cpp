@@ -676,10 +676,10 @@ INSTANTIATE_TEST_SUITE_P(
     SceneFile, SceneFileErrors,
     ::testing::Values(
         BadScene{"unknown_top_key", R"(, "modle": 1)",
-                 {"bad.json: modle: unknown key; did you mean \"model\"? (expected one of: model,"}},
+                 {"bad.json: modle: unknown key (did you mean \"model\"?) (expected one of: model,"}},
         BadScene{"unknown_key_far_from_any", R"(, "zzzzzz": 1)", {"zzzzzz: unknown key (expected one of: model,"}},
         BadScene{"unknown_nested_key", R"(, "contacts": {"margn": 0.1})",
-                 {"contacts.margn: unknown key; did you mean \"margin\"?"}},
+                 {"contacts.margn: unknown key (did you mean \"margin\"?)"}},
         BadScene{"unknown_step_key", R"(, "step": {"solverr": "pgs"})", {"step.solverr: unknown key"}},
         BadScene{"wrong_type", R"(, "step": {"dt": "fast"})", {"step.dt: expected a number, got string"}},
         BadScene{"wrong_type_bool", R"(, "env": {"auto_reset": 1})", {"env.auto_reset: expected true or false"}},
