@@ -378,10 +378,8 @@ const std::vector<StageDecision>& Simulator::plan() const {
 
 void Simulator::step(int n) {
   refresh_plan();
-  for (int i = 0; i < n; ++i) {
-    engine_->step(options_.substeps, options_.dt);
-    time_ += options_.dt;
-  }
+  engine_->step(n, options_.substeps, options_.dt);
+  for (int i = 0; i < n; ++i) time_ += options_.dt;
 }
 
 void Simulator::check_copy(int copy, const char* function) const {

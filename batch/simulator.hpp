@@ -155,7 +155,8 @@ class Simulator {
   int copies() const;
   double time() const { return time_; }
 
-  // Advances every copy by options().dt (n times).
+  // Advances every copy by options().dt, n times: each block of copies
+  // through all n steps before the next (the same bits as n calls).
   void step(int n = 1);
 
   // Profiling: per-phase CPU time of the following steps (a clock read per

@@ -237,7 +237,7 @@ void StepEngine<L>::set_plan(const StepPlan& plan) {
 }
 
 template <class L>
-void StepEngine<L>::step(int substeps, double dt) {
+void StepEngine<L>::step(int steps, int substeps, double dt) {
   const T h = static_cast<T>(dt / substeps);
   // blocks in pairs (the last one alone when their count is odd), whose
   // solves may run side by side (step_blocks)
@@ -247,7 +247,7 @@ void StepEngine<L>::step(int substeps, double dt) {
     const DenormalGuard flush_denormals;
     ScratchPair& pair = *scratch_[tbb::this_task_arena::current_thread_index()];
     for (int p = range.begin(); p != range.end(); ++p)
-      for (int k = 0; k < substeps; ++k) step_blocks(2 * p, std::min(2, blocks - 2 * p), h, pair.s);
+      for (int k = 0; k < steps * substeps; ++k) step_blocks(2 * p, std::min(2, blocks - 2 * p), h, pair.s);
   });
 }
 

@@ -34,7 +34,9 @@ struct Simulator::Engine {
   // Per-phase CPU time of the steps taken while profiling, summed over threads.
   virtual void set_profiling(bool on) = 0;
   virtual StepProfile profile() const = 0;
-  virtual void step(int substeps, double dt) = 0;
+  // `steps` steps of dt, each of `substeps` substeps, every block through
+  // all of them before the next (a copy's state stays in cache).
+  virtual void step(int steps, int substeps, double dt) = 0;
   // The non-row stages may change between steps (drive gains, wrenches).
   virtual void set_plan(const StepPlan& plan) = 0;
   virtual int copies() const = 0;
@@ -55,7 +57,7 @@ class StepEngine final : public Simulator::Engine {
   StepEngine(const Model& model, int copies, const StepOptions& options, const std::vector<DofSettings>& dofs,
              const StepPlan& plan, const ContactPairs& pairs);
 
-  void step(int substeps, double dt) override;
+  void step(int steps, int substeps, double dt) override;
   void set_plan(const StepPlan& plan) override;
   void set_profiling(bool on) override;
   StepProfile profile() const override;

@@ -1,5 +1,5 @@
 // A copy's step is the same bit for bit whatever the thread count, the batch
-// size, its position in the batch, and the lanes (SIMD or the scalar
+// size, its position in the batch, the steps per call, and the lanes (SIMD or the scalar
 // reference): anymal_b floating and ur5 fixed, with per-copy drives,
 // damping, Coulomb friction, narrow hard limits and velocity limits that
 // engage, link wrenches and random initial states, in float and double,
@@ -136,6 +136,23 @@ TEST_P(StepDeterminism, BatchSizeAndPositionDoNotChangeResults) {
     Simulator sim = make(*subset, options());
     sim.step(kSteps);
     expect_same_copies(reference, all, sim, *subset, std::to_string(subset->size()) + " copies");
+  }
+}
+
+// step(n) takes every block through all n steps before the next block:
+// the same bits as n calls of step(), on one thread and on two.
+TEST_P(StepDeterminism, OneCallOfNStepsMatchesNCalls) {
+  const std::vector<unsigned> s = seeds(97);
+  for (int threads : {1, 2}) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    Simulator together = make(s, options());
+    Simulator apart = make(s, options());
+    together.step(kSteps);
+    for (int k = 0; k < kSteps; ++k) apart.step();
+    EXPECT_EQ(together.time(), apart.time());
+    expect_same_copies(apart, s, together, s, std::to_string(threads) + " thread(s), step(" +
+                                                  std::to_string(kSteps) + ") against " + std::to_string(kSteps) +
+                                                  " calls of step()");
   }
 }
 
