@@ -264,7 +264,19 @@ struct BenchReport {
   std::vector<std::string> mujoco_notes;
   double mujoco_pose_error = 0.0;
   double mujoco_height = 0.0, mujoco_contacts = 0.0;
+  std::vector<std::pair<std::string, long>> mujoco_warnings;  // kind and count, over MuJoCo's timed steps
+  std::vector<std::string> mujoco_warning_messages;
+  long mujoco_resets = 0;        // timed steps after which mj_step reset an mjData
+  bool mujoco_diverged = false;  // a bad qpos, qvel or qacc: MuJoCo reset its state while timed
 };
+
+// "mjWARN_BADQACC 12 times, mjWARN_CONTACTFULL once"
+std::string warning_counts(const std::vector<std::pair<std::string, long>>& warnings) {
+  std::string text;
+  for (const auto& [kind, count] : warnings)
+    text += (text.empty() ? "" : ", ") + kind + (count == 1 ? " once" : " " + std::to_string(count) + " times");
+  return text;
+}
 
 // Lockstep rows of `precision` against the engine's rows at the same thread
 // count: lockstep's speed-up (threads > 1 over 1 thread) or its ratio to MuJoCo.
@@ -336,7 +348,16 @@ void print_text(const BenchReport& r, std::ostream& out) {
   } else {
     for (const Comparison& m : mujoco_ratios(r))
       out << "lockstep " << m.precision << " / MuJoCo, env-steps/s per core, " << m.threads
-          << (m.threads == 1 ? " thread: " : " threads: ") << fixed(m.value, 1) << "x\n";
+          << (m.threads == 1 ? " thread: " : " threads: ") << fixed(m.value, 1) << "x"
+          << (r.mujoco_diverged ? " (not equal work: MuJoCo diverged)" : "") << "\n";
+    if (r.mujoco_diverged)
+      out << "MuJoCo diverged: mj_step reset its state after " << count_of(r.mujoco_resets, "timed step")
+          << (r.mujoco_warnings.empty() ? "" : " (" + warning_counts(r.mujoco_warnings) + ")")
+          << ", as it does when qpos, qvel or qacc is not finite or too large, so its steps were not all the same "
+             "work as lockstep's\n";
+    else if (!r.mujoco_warnings.empty())
+      out << "MuJoCo warnings in its timed steps: " << warning_counts(r.mujoco_warnings) << "\n";
+    for (const std::string& message : r.mujoco_warning_messages) out << "  MuJoCo: " << message << "\n";
     out << "MuJoCo " << r.mujoco_version << " set-up:\n";
     for (const std::string& note : r.mujoco_notes) out << "  - " << note << "\n";
   }
@@ -414,7 +435,14 @@ void print_json(const BenchReport& r, std::ostream& out) {
     out << "{\"ran\": true, \"version\": " << json::quote(r.mujoco_version)
         << ", \"ratio_per_core\": " << comparisons_json(mujoco_ratios(r));
     if (r.standing) out << ", \"standing\": " << standing_json(r.mujoco_height, r.mujoco_contacts);
-    out << ", \"notes\": [";
+    out << ", \"diverged\": " << (r.mujoco_diverged ? "true" : "false") << ", \"resets\": " << r.mujoco_resets
+        << ", \"warnings\": {";
+    for (std::size_t i = 0; i < r.mujoco_warnings.size(); ++i)
+      out << (i ? ", " : "") << json::quote(r.mujoco_warnings[i].first) << ": " << r.mujoco_warnings[i].second;
+    out << "}, \"warning_messages\": [";
+    for (std::size_t i = 0; i < r.mujoco_warning_messages.size(); ++i)
+      out << (i ? ", " : "") << json::quote(r.mujoco_warning_messages[i]);
+    out << "], \"notes\": [";
     for (std::size_t i = 0; i < r.mujoco_notes.size(); ++i) out << (i ? ", " : "") << json::quote(r.mujoco_notes[i]);
     out << "]}";
   }
@@ -509,6 +537,10 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
       report.mujoco_pose_error = mujoco.max_pose_error;
       report.mujoco_height = mujoco.mean_base_height;
       report.mujoco_contacts = mujoco.mean_contacts;
+      report.mujoco_warnings = mujoco.warnings;
+      report.mujoco_warning_messages = mujoco.warning_messages;
+      report.mujoco_resets = mujoco.resets;
+      report.mujoco_diverged = mujoco.diverged();
     } catch (const std::runtime_error& e) {
       // The peer is a comparison: a model MuJoCo cannot load leaves lockstep's numbers standing.
       report.mujoco_status = std::string("failed: ") + e.what();

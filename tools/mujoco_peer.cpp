@@ -16,6 +16,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <mutex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -439,10 +440,49 @@ void reset(const mjModel* m, mjData* d, const std::vector<Drive>& drives, double
   for (const Drive& drive : drives) d->qpos[drive.qpos] = drive.target;
 }
 
+// Without mju_user_warning, MuJoCo prints each warning and appends it to
+// MUJOCO_LOG.TXT in the working directory. While the peer runs its
+// warnings come here instead, and the report gives them with the counts
+// of d->warning.
+constexpr std::size_t kWarningMessagesKept = 4;
+std::mutex warning_mutex;
+std::vector<std::string>* warning_sink = nullptr;
+
+void collect_warning(const char* message) {
+  const std::lock_guard<std::mutex> lock(warning_mutex);
+  if (warning_sink && warning_sink->size() < kWarningMessagesKept &&
+      std::find(warning_sink->begin(), warning_sink->end(), message) == warning_sink->end())
+    warning_sink->emplace_back(message);
+}
+
+class CollectedWarnings {
+ public:
+  explicit CollectedWarnings(std::vector<std::string>& sink) : previous_(mju_user_warning) {
+    const std::lock_guard<std::mutex> lock(warning_mutex);
+    warning_sink = &sink;
+    mju_user_warning = collect_warning;
+  }
+  ~CollectedWarnings() {
+    const std::lock_guard<std::mutex> lock(warning_mutex);
+    mju_user_warning = previous_;
+    warning_sink = nullptr;
+  }
+  CollectedWarnings(const CollectedWarnings&) = delete;
+  CollectedWarnings& operator=(const CollectedWarnings&) = delete;
+
+ private:
+  void (*previous_)(const char*);
+};
+
+constexpr const char* kWarningNames[mjNWARNING] = {
+    "mjWARN_INERTIA", "mjWARN_CONTACTFULL", "mjWARN_CNSTRFULL", "mjWARN_VGEOMFULL",
+    "mjWARN_BADQPOS", "mjWARN_BADQVEL",     "mjWARN_BADQACC",   "mjWARN_BADCTRL"};
+
 // Sums over the steps of one run of one mjData.
 struct Sums {
   double base_height = 0.0;  // of the root's z after each step
   double contacts = 0.0;     // of d->ncon of each step
+  long resets = 0;           // steps after which d->time went back: mj_step reset the data (a bad qpos, qvel or qacc)
 };
 
 // `steps` steps with the PD applied explicitly through qfrc_applied;
@@ -453,7 +493,9 @@ Sums step_with_pd(const mjModel* m, mjData* d, const std::vector<Drive>& drives,
   for (long s = 0; s < steps; ++s) {
     for (const Drive& drive : drives)
       d->qfrc_applied[drive.dof] = kp * (drive.target - d->qpos[drive.qpos]) - kd * d->qvel[drive.dof];
+    const double time = d->time;
     mj_step(m, d);
+    if (d->time <= time) ++sums.resets;
     if (root_z >= 0) sums.base_height += d->qpos[root_z];
     sums.contacts += d->ncon;
   }
@@ -467,33 +509,50 @@ double median(std::vector<double> values) {
 
 // Wall time of `threads` threads each stepping its own data `steps` times,
 // from a common start until the last one finishes; `first` gets the sums
-// of the first data.
+// of the first data; `resets` adds the resets of all of them and
+// `warnings` the count of each kind of MuJoCo warning.
 double time_threads(const mjModel* m, std::vector<DataPtr>& data, const std::vector<Drive>& drives,
-                    const MujocoScene& scene, long steps, int root_z, Sums& first) {
+                    const MujocoScene& scene, long steps, int root_z, Sums& first, long& resets,
+                    long (&warnings)[mjNWARNING]) {
   std::atomic<int> ready{0};
   std::atomic<bool> go{false};
   std::vector<std::thread> workers;
-  for (DataPtr& d : data) {
-    reset(m, d.get(), drives, scene.base_height);
-    Sums* out = &d == &data.front() ? &first : nullptr;
-    workers.emplace_back([&, d = d.get(), out] {
+  std::vector<Sums> sums(data.size());
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    reset(m, data[i].get(), drives, scene.base_height);
+    workers.emplace_back([&, i] {
       ready.fetch_add(1);
       while (!go.load(std::memory_order_acquire)) std::this_thread::yield();
-      const Sums sums = step_with_pd(m, d, drives, scene.kp, scene.kd, steps, root_z);
-      if (out) *out = sums;
+      sums[i] = step_with_pd(m, data[i].get(), drives, scene.kp, scene.kd, steps, root_z);
     });
   }
   while (ready.load() < static_cast<int>(data.size())) std::this_thread::yield();
   const auto start = std::chrono::steady_clock::now();
   go.store(true, std::memory_order_release);
   for (std::thread& w : workers) w.join();
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  first = sums.front();
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    resets += sums[i].resets;
+    for (int w = 0; w < mjNWARNING; ++w) warnings[w] += data[i]->warning[w].number;
+  }
+  return seconds;
 }
 
 }  // namespace
 
+bool MujocoReport::diverged() const {
+  if (resets > 0) return true;
+  for (const auto& [kind, count] : warnings)
+    if (count > 0 && (kind == kWarningNames[mjWARN_BADQPOS] || kind == kWarningNames[mjWARN_BADQVEL] ||
+                      kind == kWarningNames[mjWARN_BADQACC]))
+      return true;
+  return false;
+}
+
 MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& threads, long steps, int repeats) {
   MujocoReport report;
+  const CollectedWarnings collected(report.warning_messages);
   report.version = mj_versionString();
   const std::string xml = prepare_urdf(scene, report.notes);
   ModelPtr model = load_from_memory(xml, scene.urdf_path);
@@ -528,13 +587,16 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
 
   const std::vector<Drive> drives = drives_of(m, scene);
   const int root_z = m->njnt > 0 && m->jnt_type[0] == mjJNT_FREE ? m->jnt_qposadr[0] + 2 : -1;
+  long warnings[mjNWARNING] = {};
   for (int k : threads) {
     std::vector<DataPtr> data;
     for (int t = 0; t < k; ++t) data.emplace_back(mj_makeData(m));
     Sums sums;
-    time_threads(m, data, drives, scene, std::max(1L, steps / 10), root_z, sums);  // warm-up
+    long warm_up_resets = 0, warm_up_warnings[mjNWARNING] = {};
+    time_threads(m, data, drives, scene, std::max(1L, steps / 10), root_z, sums, warm_up_resets, warm_up_warnings);
     std::vector<double> seconds;
-    for (int r = 0; r < repeats; ++r) seconds.push_back(time_threads(m, data, drives, scene, steps, root_z, sums));
+    for (int r = 0; r < repeats; ++r)
+      seconds.push_back(time_threads(m, data, drives, scene, steps, root_z, sums, report.resets, warnings));
     report.timings.push_back({k, steps, median(seconds)});
     report.mean_base_height = steps > 0 ? sums.base_height / static_cast<double>(steps) : 0.0;
     report.mean_contacts = steps > 0 ? sums.contacts / static_cast<double>(steps) : 0.0;
@@ -542,6 +604,8 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
     for (const Drive& drive : drives) error = std::max(error, std::abs(data.front()->qpos[drive.qpos] - drive.target));
     report.max_pose_error = error;
   }
+  for (int w = 0; w < mjNWARNING; ++w)
+    if (warnings[w] > 0) report.warnings.emplace_back(kWarningNames[w], warnings[w]);
   return report;
 }
 

@@ -47,6 +47,19 @@ struct MujocoReport {
   // and the mean number of contacts d->ncon (0 with contacts off).
   double mean_base_height = 0.0;
   double mean_contacts = 0.0;
+  // MuJoCo's warnings over every timed step of every mjData (d->warning),
+  // by kind ("mjWARN_BADQACC", ...), only those that occurred, and the
+  // first few messages MuJoCo wrote for them (kept here instead of its
+  // stdout and MUJOCO_LOG.TXT in the working directory).
+  std::vector<std::pair<std::string, long>> warnings;
+  std::vector<std::string> warning_messages;
+  // Timed steps after which an mjData's time went back: mj_step found a
+  // bad qpos, qvel or qacc and reset the data (its warning counts restart
+  // with it, so they understate this).
+  long resets = 0;
+  // Any reset or bad-state warning: the timed steps were not all the same
+  // work as lockstep's.
+  bool diverged() const;
 };
 
 // Loads `scene.urdf_path` into MuJoCo (meshes stripped, a floating root
