@@ -377,6 +377,8 @@ const std::vector<StageDecision>& Simulator::plan() const {
 }
 
 void Simulator::step(int n) {
+  require(n >= 0, [&] { return "Simulator::step: the number of steps must be >= 0, got " + std::to_string(n); });
+  if (n == 0) return;
   refresh_plan();
   engine_->step(n, options_.substeps, options_.dt);
   for (int i = 0; i < n; ++i) time_ += options_.dt;

@@ -156,7 +156,8 @@ class Simulator {
   double time() const { return time_; }
 
   // Advances every copy by options().dt, n times: each block of copies
-  // through all n steps before the next (the same bits as n calls).
+  // through all n steps before the next (the same bits as n calls). n < 0
+  // throws std::invalid_argument; n = 0 does nothing.
   void step(int n = 1);
 
   // Profiling: per-phase CPU time of the following steps (a clock read per

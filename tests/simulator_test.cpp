@@ -416,6 +416,19 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
     EXPECT_NE(std::string(e.what()).find("floating base takes no drive"), std::string::npos) << e.what();
   }
   Simulator sim(model, 2);
+  sim.set_state(0, Eigen::VectorXd::Constant(1, 0.25), Eigen::VectorXd::Constant(1, 1.0));
+  try {
+    sim.step(-1);
+    ADD_FAILURE() << "no error for step(-1)";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("Simulator::step: the number of steps must be >= 0, got -1"),
+              std::string::npos)
+        << e.what();
+  }
+  sim.step(0);
+  EXPECT_EQ(sim.time(), 0.0) << "step(0) and a refused step(-1) take no step";
+  EXPECT_EQ(sim.q(0)[0], 0.25);
+  EXPECT_EQ(sim.v(0)[0], 1.0);
   EXPECT_THROW(sim.set_state(2, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1)), std::out_of_range);
   EXPECT_THROW(sim.set_torque(0, Eigen::VectorXd::Zero(3)), std::invalid_argument);
   EXPECT_THROW(sim.batch<double>(), std::logic_error);
