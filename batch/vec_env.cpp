@@ -47,10 +47,12 @@ const char* action_mode_name(ActionMode mode) {
 }
 
 Observations::Observations(int copies, const Model& model, bool contacts)
-    : q(copies, model.nq), qd(copies, model.nv), base_position(copies, 3), base_orientation(copies, 4),
-      base_linear_velocity_world(copies, 3), base_angular_velocity_world(copies, 3),
-      base_linear_velocity_base(copies, 3), base_angular_velocity_base(copies, 3), projected_gravity(copies, 3),
-      applied_torque(copies, model.nv), contact_force(copies, contacts ? 3 * model.nbody : 0) {}
+    : q(RowMatrix::Zero(copies, model.nq)), qd(RowMatrix::Zero(copies, model.nv)),
+      base_position(RowMatrix::Zero(copies, 3)), base_orientation(RowMatrix::Zero(copies, 4)),
+      base_linear_velocity_world(RowMatrix::Zero(copies, 3)), base_angular_velocity_world(RowMatrix::Zero(copies, 3)),
+      base_linear_velocity_base(RowMatrix::Zero(copies, 3)), base_angular_velocity_base(RowMatrix::Zero(copies, 3)),
+      projected_gravity(RowMatrix::Zero(copies, 3)), applied_torque(RowMatrix::Zero(copies, model.nv)),
+      contact_force(RowMatrix::Zero(copies, contacts ? 3 * model.nbody : 0)) {}
 
 VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuild caller)
     : header_check_(caller),

@@ -132,7 +132,8 @@ class VecEnv {
 
   const Observations& observations() const { return observations_; }
   // Rows of the copies that ended in the last step, as they ended (before
-  // the auto-reset); other rows are stale.
+  // the auto-reset); other rows are stale: an earlier ending's, or zeros
+  // before a copy's first.
   const Observations& terminal_observations() const { return terminal_; }
   const Eigen::VectorXd& reward() const { return reward_out_; }
   const std::vector<std::uint8_t>& terminated() const { return terminated_; }

@@ -76,6 +76,9 @@ TEST(VecEnv, ObservationsDescribeTheSimulatorState) {
   env.step(wave_actions(env, iota(5), 0));
   const Observations& o = env.observations();
   const Simulator& sim = env.simulator();
+  const Observations& terminal = env.terminal_observations();
+  for (const RowMatrix* m : {&terminal.q, &terminal.qd, &terminal.applied_torque, &terminal.contact_force})
+    EXPECT_TRUE(m->isZero(0.0)) << "before any copy's episode ended, its terminal rows are zeros";
   ASSERT_EQ(o.q.rows(), 5);
   ASSERT_EQ(o.contact_force.cols(), 3 * anymal().nbody);
   for (int c = 0; c < 5; ++c) {
