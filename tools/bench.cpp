@@ -37,6 +37,9 @@ namespace fs = std::filesystem;
 struct BenchConfig {
   std::string model;  // a URDF or a scene file
   bool default_model = false;  // none given: anymal_b with a floating base
+  // Without anymal_b among the shared models the build knows, the default
+  // is the bundled quadruped, and this says so; empty otherwise.
+  std::string stand_in_note;
   int copies = 4096;
   std::vector<int> threads{1, 2};
   std::vector<Precision> precisions{Precision::Float, Precision::Double};
@@ -94,11 +97,16 @@ std::string machine_description() {
          (usable < hardware ? " (" + std::to_string(usable) + " usable by this process)" : "");
 }
 
-std::string default_model() {
+// anymal_b from the shared models the build knows, else the bundled
+// quadruped with `note` saying why.
+std::string default_model(std::string& note) {
   const fs::path shared = fs::path(LOCKSTEP_SHARED_MODELS_DIR) / "anymal_b.urdf";
   std::error_code ec;
   if (!shared.parent_path().empty() && fs::exists(shared, ec)) return shared.string();
-  return (fs::path(bundled_models_dir()) / "quadruped.urdf").string();
+  const std::string bundled = (fs::path(bundled_models_dir()) / "quadruped.urdf").string();
+  note = "the default model " + shared.string() + " is not there, so the bundled " + bundled +
+         " stands in: its numbers are not anymal_b's (name a model to bench it)";
+  return bundled;
 }
 
 std::vector<std::string> split(const std::string& list) {
@@ -124,7 +132,7 @@ BenchConfig parse_config(const std::vector<std::string>& args) {
   if (parsed.positional.size() > 1) throw UsageError("bench takes at most one MODEL.urdf or SCENE.json");
   BenchConfig config;
   config.default_model = parsed.positional.empty();
-  config.model = config.default_model ? default_model() : parsed.positional[0];
+  config.model = config.default_model ? default_model(config.stand_in_note) : parsed.positional[0];
   if (const std::string* v = parsed.value("--envs")) config.copies = static_cast<int>(parse_count("--envs", *v));
   if (const std::string* v = parsed.value("--steps")) config.steps = static_cast<int>(parse_count("--steps", *v));
   if (const std::string* v = parsed.value("--repeats")) config.repeats = static_cast<int>(parse_count("--repeats", *v));
@@ -309,8 +317,9 @@ std::vector<Comparison> mujoco_ratios(const BenchReport& report) {
 
 void print_text(const BenchReport& r, std::ostream& out) {
   const BenchConfig& c = r.config;
-  out << "lockstep bench: " << c.model << (r.floating_base ? " (floating base)" : " (fixed base)") << "\n"
-      << "scene: " << (r.contacts ? "contacts on" : "no contacts") << ", gravity on, PD drives on " << r.driven_dofs
+  out << "lockstep bench: " << c.model << (r.floating_base ? " (floating base)" : " (fixed base)") << "\n";
+  if (!c.stand_in_note.empty()) out << "note: " << c.stand_in_note << "\n";
+  out << "scene: " << (r.contacts ? "contacts on" : "no contacts") << ", gravity on, PD drives on " << r.driven_dofs
       << " of " << r.nv << " DOFs holding their targets, dt " << r.dt << " s\n"
       << "machine: " << r.machine << "\n"
       << "build: " << build_description() << "\n"
@@ -413,7 +422,9 @@ std::string standing_json(double height, double contacts) {
 
 void print_json(const BenchReport& r, std::ostream& out) {
   const BenchConfig& c = r.config;
-  out << "{\n  \"model\": " << json::quote(c.model) << ",\n  \"floating_base\": " << (r.floating_base ? "true" : "false")
+  out << "{\n  \"model\": " << json::quote(c.model);
+  if (!c.stand_in_note.empty()) out << ",\n  \"model_note\": " << json::quote(c.stand_in_note);
+  out << ",\n  \"floating_base\": " << (r.floating_base ? "true" : "false")
       << ",\n  \"contacts\": " << (r.contacts ? "true" : "false")
       << ",\n  \"machine\": " << json::quote(r.machine) << ",\n  \"build\": " << json::quote(build_description())
       << ",\n  \"copies\": " << c.copies << ",\n  \"steps\": " << c.steps << ",\n  \"repeats\": " << c.repeats
