@@ -1,6 +1,7 @@
 #include "batch/simulator.hpp"
 
 #include "batch/batch_dynamics.hpp"
+#include "batch/fnv1a.hpp"
 #include "batch/require.hpp"
 #include "batch/step_engine.hpp"
 
@@ -39,33 +40,14 @@ template struct StepBatch<double>;
 
 namespace {
 
-// FNV-1a, 64 bits, over what gives a snapshot's arrays their meaning: the
-// bodies' joints (name, type, q and DOF offsets), the links, the joint rows
-// (kind and DOF of each warm-started impulse) and the contact pairs (their
+// FNV-1a over what gives a snapshot's arrays their meaning: the bodies'
+// joints (name, type, q and DOF offsets), the links, the joint rows (kind
+// and DOF of each warm-started impulse) and the contact pairs (their
 // shapes, bodies and candidate numbering, which the warm start's contact
 // ids refer to).
-class SceneKey {
- public:
-  void add(std::uint64_t x) {
-    for (int k = 0; k < 8; ++k) add_byte(static_cast<unsigned char>(x >> (8 * k)));
-  }
-  void add(const std::string& s) {
-    add(s.size());
-    for (unsigned char c : s) add_byte(c);
-  }
-  std::uint64_t value() const { return hash_; }
-
- private:
-  void add_byte(unsigned char c) {
-    hash_ ^= c;
-    hash_ *= 0x100000001b3u;  // the FNV prime
-  }
-  std::uint64_t hash_ = 0xcbf29ce484222325u;  // the FNV offset basis
-};
-
 std::uint64_t scene_key_of(const Model& model, const std::vector<std::pair<int, int>>& rows,
                            const ContactPairs& pairs) {
-  SceneKey key;
+  Fnv1a key;
   key.add(static_cast<std::uint64_t>(model.nbody));
   for (int b = 0; b < model.nbody; ++b) {
     key.add(model.joint_name[b]);
@@ -75,12 +57,12 @@ std::uint64_t scene_key_of(const Model& model, const std::vector<std::pair<int, 
     key.add(static_cast<std::uint64_t>(model.body_dof_offset[b]));
   }
   for (const std::string& frame : model.frame_name) key.add(frame);
-  key.add(rows.size());
+  key.add(static_cast<std::uint64_t>(rows.size()));
   for (const auto& [kind, dof] : rows) {
     key.add(static_cast<std::uint64_t>(kind));
     key.add(static_cast<std::uint64_t>(dof));
   }
-  key.add(pairs.pairs.size());
+  key.add(static_cast<std::uint64_t>(pairs.pairs.size()));
   for (const ContactPair& pair : pairs.pairs)
     for (const int x : {static_cast<int>(pair.kind), pair.a.shape, pair.a.body, pair.b.shape, pair.b.body,
                         pair.first_candidate})
@@ -381,7 +363,7 @@ void Simulator::step(int n) {
   if (n == 0) return;
   refresh_plan();
   engine_->step(n, options_.substeps, options_.dt);
-  for (int i = 0; i < n; ++i) time_ += options_.dt;
+  for (int i = 0; i < n; ++i) time_ += options_.dt;  // summed as n calls would, not n * dt
 }
 
 void Simulator::check_copy(int copy, const char* function) const {

@@ -9,6 +9,7 @@
 // constants below (a failure prints the new value); one not meant to is a
 // defect. A build without FMA (the portable preset) rounds each a*b+c twice
 // and gets other bits: the test skips there.
+#include "batch/fnv1a.hpp"
 #include "batch/vec_env.hpp"
 #include "io/scene_file.hpp"
 #include "tools/rollout_policy.hpp"
@@ -17,7 +18,6 @@
 #include <tbb/global_control.h>
 
 #include <cstdint>
-#include <cstring>
 #include <iomanip>
 #include <sstream>
 #include <string>
@@ -25,23 +25,12 @@
 namespace lockstep {
 namespace {
 
-// FNV-1a over the bytes of every value.
-class Fnv1a {
- public:
-  template <class Matrix>
-  void add(const Matrix& m) {
-    for (Eigen::Index i = 0; i < m.size(); ++i) {
-      const double x = m(i / m.cols(), i % m.cols());
-      std::uint64_t bits;
-      std::memcpy(&bits, &x, sizeof bits);
-      for (int b = 0; b < 8; ++b) hash_ = (hash_ ^ ((bits >> (8 * b)) & 0xff)) * 0x100000001b3ull;
-    }
-  }
-  std::uint64_t value() const { return hash_; }
-
- private:
-  std::uint64_t hash_ = 0xcbf29ce484222325ull;
-};
+// Every value of m, row by row.
+template <class Matrix>
+void add_values(Fnv1a& hash, const Matrix& m) {
+  for (Eigen::Index r = 0; r < m.rows(); ++r)
+    for (Eigen::Index c = 0; c < m.cols(); ++c) hash.add(static_cast<double>(m(r, c)));
+}
 
 std::string hex(std::uint64_t x) {
   std::ostringstream s;
@@ -67,9 +56,9 @@ std::uint64_t rollout_hash(Precision precision, SolverType solver, int threads) 
     policy.act(env, t, actions);
     env.step(actions);
     const Observations& o = env.observations();
-    for (const RowMatrix* m : {&o.q, &o.qd, &o.applied_torque, &o.contact_force}) hash.add(*m);
+    for (const RowMatrix* m : {&o.q, &o.qd, &o.applied_torque, &o.contact_force}) add_values(hash, *m);
     for (int c = 0; c < env.copies(); ++c)  // where an episode ended, the state it ended in
-      if (env.truncated()[c] || env.terminated()[c]) hash.add(env.terminal_observations().q.row(c));
+      if (env.truncated()[c] || env.terminated()[c]) add_values(hash, env.terminal_observations().q.row(c));
   }
   return hash.value();
 }
