@@ -270,14 +270,7 @@ struct BenchReport {
   std::vector<PrecisionResult> precisions;
   std::string plan;
   std::string mujoco_status;  // why MuJoCo did not run; empty when it did
-  std::string mujoco_version;
-  std::vector<std::string> mujoco_notes;
-  double mujoco_pose_error = 0.0;
-  double mujoco_height = 0.0, mujoco_contacts = 0.0;
-  std::vector<std::pair<std::string, long>> mujoco_warnings;  // kind and count, over MuJoCo's timed steps
-  std::vector<std::string> mujoco_warning_messages;
-  long mujoco_resets = 0;        // timed steps after which mj_step reset an mjData
-  bool mujoco_diverged = false;  // a bad qpos, qvel or qacc: MuJoCo reset its state while timed
+  MujocoReport mujoco;  // when it ran
 };
 
 // "mjWARN_BADQACC 12 times, mjWARN_CONTACTFULL once"
@@ -360,17 +353,17 @@ void print_text(const BenchReport& r, std::ostream& out) {
     for (const Comparison& m : mujoco_ratios(r))
       out << "lockstep " << m.precision << " / MuJoCo, env-steps/s per core, " << m.threads
           << (m.threads == 1 ? " thread: " : " threads: ") << fixed(m.value, 1) << "x"
-          << (r.mujoco_diverged ? " (not equal work: MuJoCo diverged)" : "") << "\n";
-    if (r.mujoco_diverged)
-      out << "MuJoCo diverged: mj_step reset its state after " << count_of(r.mujoco_resets, "timed step")
-          << (r.mujoco_warnings.empty() ? "" : " (" + warning_counts(r.mujoco_warnings) + ")")
+          << (r.mujoco.diverged ? " (not equal work: MuJoCo diverged)" : "") << "\n";
+    if (r.mujoco.diverged)
+      out << "MuJoCo diverged: mj_step reset its state after " << count_of(r.mujoco.resets, "timed step")
+          << (r.mujoco.warnings.empty() ? "" : " (" + warning_counts(r.mujoco.warnings) + ")")
           << ", as it does when qpos, qvel or qacc is not finite or too large, so its steps were not all the same "
              "work as lockstep's\n";
-    else if (!r.mujoco_warnings.empty())
-      out << "MuJoCo warnings in its timed steps: " << warning_counts(r.mujoco_warnings) << "\n";
-    for (const std::string& message : r.mujoco_warning_messages) out << "  MuJoCo: " << message << "\n";
-    out << "MuJoCo " << r.mujoco_version << " set-up:\n";
-    for (const std::string& note : r.mujoco_notes) out << "  - " << note << "\n";
+    else if (!r.mujoco.warnings.empty())
+      out << "MuJoCo warnings in its timed steps: " << warning_counts(r.mujoco.warnings) << "\n";
+    for (const std::string& message : r.mujoco.warning_messages) out << "  MuJoCo: " << message << "\n";
+    out << "MuJoCo " << r.mujoco.version << " set-up:\n";
+    for (const std::string& note : r.mujoco.notes) out << "  - " << note << "\n";
   }
 
   out << "\nbytes per copy (state, inputs, per-copy parameters, warm start):";
@@ -381,7 +374,7 @@ void print_text(const BenchReport& r, std::ostream& out) {
     out << separator << "lockstep " << precision_name(p.precision) << " " << p.max_pose_error;
     separator = ", ";
   }
-  if (r.mujoco_status.empty()) out << ", MuJoCo " << r.mujoco_pose_error;
+  if (r.mujoco_status.empty()) out << ", MuJoCo " << r.mujoco.max_pose_error;
   if (r.standing) {
     out << "\nstanding (mean root height, mean pushing contacts per copy):";
     separator = " ";
@@ -391,7 +384,7 @@ void print_text(const BenchReport& r, std::ostream& out) {
       separator = "; ";
     }
     if (r.mujoco_status.empty())
-      out << separator << "MuJoCo " << fixed(r.mujoco_height, 4) << " m, " << fixed(r.mujoco_contacts, 2);
+      out << separator << "MuJoCo " << fixed(r.mujoco.mean_base_height, 4) << " m, " << fixed(r.mujoco.mean_contacts, 2);
   }
   out << "\ntime by phase (one profiled run, " << count_of(c.threads.front(), "thread") << "):";
   for (const PrecisionResult& p : r.precisions) {
@@ -445,18 +438,18 @@ void print_json(const BenchReport& r, std::ostream& out) {
   if (!r.mujoco_status.empty()) {
     out << "{\"ran\": false, \"reason\": " << json::quote(r.mujoco_status) << "}";
   } else {
-    out << "{\"ran\": true, \"version\": " << json::quote(r.mujoco_version)
+    out << "{\"ran\": true, \"version\": " << json::quote(r.mujoco.version)
         << ", \"ratio_per_core\": " << comparisons_json(mujoco_ratios(r));
-    if (r.standing) out << ", \"standing\": " << standing_json(r.mujoco_height, r.mujoco_contacts);
-    out << ", \"diverged\": " << (r.mujoco_diverged ? "true" : "false") << ", \"resets\": " << r.mujoco_resets
+    if (r.standing) out << ", \"standing\": " << standing_json(r.mujoco.mean_base_height, r.mujoco.mean_contacts);
+    out << ", \"diverged\": " << (r.mujoco.diverged ? "true" : "false") << ", \"resets\": " << r.mujoco.resets
         << ", \"warnings\": {";
-    for (std::size_t i = 0; i < r.mujoco_warnings.size(); ++i)
-      out << (i ? ", " : "") << json::quote(r.mujoco_warnings[i].first) << ": " << r.mujoco_warnings[i].second;
+    for (std::size_t i = 0; i < r.mujoco.warnings.size(); ++i)
+      out << (i ? ", " : "") << json::quote(r.mujoco.warnings[i].first) << ": " << r.mujoco.warnings[i].second;
     out << "}, \"warning_messages\": [";
-    for (std::size_t i = 0; i < r.mujoco_warning_messages.size(); ++i)
-      out << (i ? ", " : "") << json::quote(r.mujoco_warning_messages[i]);
+    for (std::size_t i = 0; i < r.mujoco.warning_messages.size(); ++i)
+      out << (i ? ", " : "") << json::quote(r.mujoco.warning_messages[i]);
     out << "], \"notes\": [";
-    for (std::size_t i = 0; i < r.mujoco_notes.size(); ++i) out << (i ? ", " : "") << json::quote(r.mujoco_notes[i]);
+    for (std::size_t i = 0; i < r.mujoco.notes.size(); ++i) out << (i ? ", " : "") << json::quote(r.mujoco.notes[i]);
     out << "]}";
   }
   out << ",\n  \"precisions\": [";
@@ -542,18 +535,9 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
     peer.ground = report.contacts && scene.env.step.contacts.ground;
     peer.friction = scene.env.step.contacts.ground_contact.friction;
     try {
-      const MujocoReport mujoco = run_mujoco_peer(peer, config.threads, config.mujoco_steps, config.repeats);
-      for (const MujocoTiming& t : mujoco.timings)
+      report.mujoco = run_mujoco_peer(peer, config.threads, config.mujoco_steps, config.repeats);
+      for (const MujocoTiming& t : report.mujoco.timings)
         report.rows.push_back({"mujoco", "double", t.threads, t.threads, t.steps, t.seconds});
-      report.mujoco_version = mujoco.version;
-      report.mujoco_notes = mujoco.notes;
-      report.mujoco_pose_error = mujoco.max_pose_error;
-      report.mujoco_height = mujoco.mean_base_height;
-      report.mujoco_contacts = mujoco.mean_contacts;
-      report.mujoco_warnings = mujoco.warnings;
-      report.mujoco_warning_messages = mujoco.warning_messages;
-      report.mujoco_resets = mujoco.resets;
-      report.mujoco_diverged = mujoco.diverged();
     } catch (const std::runtime_error& e) {
       // The peer is a comparison: a model MuJoCo cannot load leaves lockstep's numbers standing.
       report.mujoco_status = std::string("failed: ") + e.what();

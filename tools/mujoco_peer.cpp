@@ -507,13 +507,17 @@ double median(std::vector<double> values) {
   return values[values.size() / 2];
 }
 
+// What went wrong over the runs of all data: resets and warnings by kind.
+struct Trouble {
+  long resets = 0;
+  long warnings[mjNWARNING] = {};
+};
+
 // Wall time of `threads` threads each stepping its own data `steps` times,
 // from a common start until the last one finishes; `first` gets the sums
-// of the first data; `resets` adds the resets of all of them and
-// `warnings` the count of each kind of MuJoCo warning.
+// of the first data, `trouble` adds the resets and warnings of all of them.
 double time_threads(const mjModel* m, std::vector<DataPtr>& data, const std::vector<Drive>& drives,
-                    const MujocoScene& scene, long steps, int root_z, Sums& first, long& resets,
-                    long (&warnings)[mjNWARNING]) {
+                    const MujocoScene& scene, long steps, int root_z, Sums& first, Trouble& trouble) {
   std::atomic<int> ready{0};
   std::atomic<bool> go{false};
   std::vector<std::thread> workers;
@@ -533,22 +537,13 @@ double time_threads(const mjModel* m, std::vector<DataPtr>& data, const std::vec
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   first = sums.front();
   for (std::size_t i = 0; i < data.size(); ++i) {
-    resets += sums[i].resets;
-    for (int w = 0; w < mjNWARNING; ++w) warnings[w] += data[i]->warning[w].number;
+    trouble.resets += sums[i].resets;
+    for (int w = 0; w < mjNWARNING; ++w) trouble.warnings[w] += data[i]->warning[w].number;
   }
   return seconds;
 }
 
 }  // namespace
-
-bool MujocoReport::diverged() const {
-  if (resets > 0) return true;
-  for (const auto& [kind, count] : warnings)
-    if (count > 0 && (kind == kWarningNames[mjWARN_BADQPOS] || kind == kWarningNames[mjWARN_BADQVEL] ||
-                      kind == kWarningNames[mjWARN_BADQACC]))
-      return true;
-  return false;
-}
 
 MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& threads, long steps, int repeats) {
   MujocoReport report;
@@ -587,16 +582,16 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
 
   const std::vector<Drive> drives = drives_of(m, scene);
   const int root_z = m->njnt > 0 && m->jnt_type[0] == mjJNT_FREE ? m->jnt_qposadr[0] + 2 : -1;
-  long warnings[mjNWARNING] = {};
+  Trouble timed;  // the warm-ups' are not reported
   for (int k : threads) {
     std::vector<DataPtr> data;
     for (int t = 0; t < k; ++t) data.emplace_back(mj_makeData(m));
     Sums sums;
-    long warm_up_resets = 0, warm_up_warnings[mjNWARNING] = {};
-    time_threads(m, data, drives, scene, std::max(1L, steps / 10), root_z, sums, warm_up_resets, warm_up_warnings);
+    Trouble warm_up;
+    time_threads(m, data, drives, scene, std::max(1L, steps / 10), root_z, sums, warm_up);
     std::vector<double> seconds;
     for (int r = 0; r < repeats; ++r)
-      seconds.push_back(time_threads(m, data, drives, scene, steps, root_z, sums, report.resets, warnings));
+      seconds.push_back(time_threads(m, data, drives, scene, steps, root_z, sums, timed));
     report.timings.push_back({k, steps, median(seconds)});
     report.mean_base_height = steps > 0 ? sums.base_height / static_cast<double>(steps) : 0.0;
     report.mean_contacts = steps > 0 ? sums.contacts / static_cast<double>(steps) : 0.0;
@@ -604,8 +599,11 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
     for (const Drive& drive : drives) error = std::max(error, std::abs(data.front()->qpos[drive.qpos] - drive.target));
     report.max_pose_error = error;
   }
+  report.resets = timed.resets;
   for (int w = 0; w < mjNWARNING; ++w)
-    if (warnings[w] > 0) report.warnings.emplace_back(kWarningNames[w], warnings[w]);
+    if (timed.warnings[w] > 0) report.warnings.emplace_back(kWarningNames[w], timed.warnings[w]);
+  report.diverged = timed.resets > 0 || timed.warnings[mjWARN_BADQPOS] > 0 || timed.warnings[mjWARN_BADQVEL] > 0 ||
+                    timed.warnings[mjWARN_BADQACC] > 0;
   return report;
 }
 

@@ -59,7 +59,7 @@ struct MujocoReport {
   long resets = 0;
   // Any reset or bad-state warning: the timed steps were not all the same
   // work as lockstep's.
-  bool diverged() const;
+  bool diverged = false;
 };
 
 // Loads `scene.urdf_path` into MuJoCo (meshes stripped, a floating root
