@@ -247,7 +247,8 @@ void StepEngine<L>::step(int steps, int substeps, double dt) {
     const DenormalGuard flush_denormals;
     ScratchPair& pair = *scratch_[tbb::this_task_arena::current_thread_index()];
     for (int p = range.begin(); p != range.end(); ++p)
-      for (int k = 0; k < steps * substeps; ++k) step_blocks(2 * p, std::min(2, blocks - 2 * p), h, pair.s);
+      for (int n = 0; n < steps; ++n)
+        for (int k = 0; k < substeps; ++k) step_blocks(2 * p, std::min(2, blocks - 2 * p), h, pair.s);
   });
 }
 
