@@ -25,15 +25,17 @@ inline constexpr double kBaseHeight = 0.6;        // initial z of a floating roo
 // name, 0 for every other joint. ANYmal (LF_HFE, RH_KFE, ...): hip
 // abduction 0, front legs HFE +0.4 and KFE -0.8, hind legs HFE -0.4 and
 // KFE +0.8 (a leg is front when the name's prefix before '_' has an F,
-// hind when it has an H). Unitree A1 (FR_thigh_joint, RL_calf_joint, ...):
-// thighs 0.8, calves -1.6, hips 0, on every leg.
+// hind when it has an H). Unitree A1 (FR_thigh_joint, RL_calf_joint, ...)
+// and the bundled quadruped (FL_hip_flex, HR_knee, ...; its scene file
+// models/quadruped_scene.json stands the same way): thighs 0.8, calves
+// -1.6, hips 0, on every leg.
 inline double standing_target(const std::string& joint) {
   const std::size_t underscore = joint.find('_');
   if (underscore == std::string::npos) return 0.0;
   const std::string leg = joint.substr(0, underscore);
   const std::string part = joint.substr(underscore + 1);
-  if (part == "thigh_joint") return 0.8;
-  if (part == "calf_joint") return -1.6;
+  if (part == "thigh_joint" || part == "hip_flex") return 0.8;
+  if (part == "calf_joint" || part == "knee") return -1.6;
   const bool front = leg.find('F') != std::string::npos;
   const bool hind = leg.find('H') != std::string::npos;
   if (front == hind) return 0.0;
