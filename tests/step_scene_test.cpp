@@ -1,10 +1,12 @@
 // tools/step_scene.hpp: the standing pose `lockstep bench` and `lockstep
-// rollout` give a bare URDF.
+// rollout` give a bare URDF, and the copies `lockstep bench --spread` steps,
+// each holding a pose of its own.
 #include "tools/cli.hpp"
 #include "tools/step_scene.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <string>
 
@@ -13,6 +15,10 @@ namespace {
 
 const std::string kQuadruped = std::string(LOCKSTEP_MODELS_DIR) + "/quadruped.urdf";
 
+bool one_dof(const Model& m, int b) {
+  return m.body_joint[b] == JointType::Revolute || m.body_joint[b] == JointType::Prismatic;
+}
+
 // Every quadruped the standing pose names, bundled and shared: its targets
 // lie within the URDF's joint limits, so that no drive holds a joint
 // against its limit (the bundled quadruped's knees once had target 0,
@@ -20,7 +26,8 @@ const std::string kQuadruped = std::string(LOCKSTEP_MODELS_DIR) + "/quadruped.ur
 TEST(StandingPose, EveryTargetLiesWithinItsJointsLimits) {
   const std::string shared = LOCKSTEP_SHARED_MODELS_DIR;
   int checked = 0;
-  for (const std::string& path : {kQuadruped, shared + "/anymal_b.urdf", shared + "/a1.urdf", shared + "/solo12.urdf"}) {
+  for (const std::string& path :
+       {kQuadruped, shared + "/anymal_b.urdf", shared + "/a1.urdf", shared + "/solo12.urdf"}) {
     if (!std::filesystem::exists(path)) continue;
     const Scene scene = cli::load_cli_scene(path, true, true, false);
     const Model& m = scene.model;
@@ -35,6 +42,74 @@ TEST(StandingPose, EveryTargetLiesWithinItsJointsLimits) {
     ++checked;
   }
   EXPECT_GE(checked, 1);
+}
+
+TEST(CopyPoses, EveryCopyButTheFirstHoldsItsOwnPoseWithinTheSpreadAndTheLimits) {
+  const Scene scene = cli::load_cli_scene(kQuadruped, true, true, false);
+  const Model& m = scene.model;
+  const double spread = 0.1;
+  const int copies = 64;
+  const step_scene::CopyPoses poses = step_scene::copy_poses(m, scene.env.dofs, scene.env.drive_target_q,
+                                                             scene.env.initial_q, copies, spread);
+  ASSERT_EQ(poses.target.size(), static_cast<std::size_t>(copies));
+  EXPECT_EQ(poses.target[0], scene.env.drive_target_q);
+  EXPECT_EQ(poses.q0[0], scene.env.initial_q);
+  const int z = m.body_q_offset[0] + 2;
+  const double scene_height = *resting_root_height(m, scene.env.drive_target_q);
+  for (int c = 1; c < copies; ++c) {
+    int moved = 0;
+    for (int b = 0; b < m.nbody; ++b) {
+      if (!one_dof(m, b)) continue;
+      const int i = m.body_q_offset[b];
+      const DofSettings& dof = scene.env.dofs[m.body_dof_offset[b]];
+      EXPECT_LE(std::abs(poses.target[c][i] - scene.env.drive_target_q[i]), spread) << "copy " << c << " body " << b;
+      EXPECT_GE(poses.target[c][i], dof.lower);
+      EXPECT_LE(poses.target[c][i], dof.upper);
+      EXPECT_EQ(poses.q0[c][i], poses.target[c][i]);  // at rest in its own pose
+      moved += poses.target[c][i] != scene.env.drive_target_q[i];
+    }
+    EXPECT_GT(moved, 0) << "copy " << c;
+    EXPECT_NE(poses.target[c], poses.target[c - 1]);
+    // its lowest shape where the scene's is: the root moved by the change of
+    // the resting height (1e-12 m: the sum of two heights of about 0.5 m)
+    const double height = *resting_root_height(m, poses.target[c]);
+    EXPECT_NEAR(poses.q0[c][z] - scene.env.initial_q[z], height - scene_height, 1e-12) << "copy " << c;
+    EXPECT_EQ(poses.target[c][z], poses.q0[c][z]);
+  }
+}
+
+TEST(CopyPoses, AJointsOffsetStopsAtItsLimit) {
+  const Scene scene = cli::load_cli_scene(kQuadruped, true, true, false);
+  const Model& m = scene.model;
+  const step_scene::CopyPoses poses =
+      step_scene::copy_poses(m, scene.env.dofs, scene.env.drive_target_q, scene.env.initial_q, 16, 10.0);
+  int at_limit = 0;
+  for (int c = 1; c < 16; ++c)
+    for (int b = 0; b < m.nbody; ++b) {
+      if (!one_dof(m, b)) continue;
+      const double x = poses.target[c][m.body_q_offset[b]];
+      const DofSettings& dof = scene.env.dofs[m.body_dof_offset[b]];
+      EXPECT_GE(x, dof.lower);
+      EXPECT_LE(x, dof.upper);
+      at_limit += x == dof.lower || x == dof.upper;
+    }
+  // offsets of up to 10 rad against ranges of 1.6 rad or less: most land on a limit
+  EXPECT_GT(at_limit, 15 * 12 / 2);
+}
+
+TEST(CopyPoses, AreTheSameInEveryCallAndAllTheSceneWithoutSpread) {
+  const Scene scene = cli::load_cli_scene(kQuadruped, true, true, false);
+  const Model& m = scene.model;
+  const auto poses = [&](int copies, double spread) {
+    return step_scene::copy_poses(m, scene.env.dofs, scene.env.drive_target_q, scene.env.initial_q, copies, spread);
+  };
+  const step_scene::CopyPoses few = poses(8, 0.05), many = poses(32, 0.05), none = poses(8, 0.0);
+  for (int c = 0; c < 8; ++c) {
+    EXPECT_EQ(few.target[c], many.target[c]) << "copy " << c;  // seeded by the copy, not by the batch
+    EXPECT_EQ(few.q0[c], many.q0[c]) << "copy " << c;
+    EXPECT_EQ(none.target[c], scene.env.drive_target_q);
+    EXPECT_EQ(none.q0[c], scene.env.initial_q);
+  }
 }
 
 }  // namespace

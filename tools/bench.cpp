@@ -52,6 +52,7 @@ struct BenchConfig {
   bool mujoco = true;
   bool json = false;
   bool floating_base = false, ground = false, no_contacts = false;
+  double spread = 0.0;  // [rad or m] largest per-copy offset of the 1-DOF joints' pose; 0: every copy the same
 };
 
 // One timed configuration: `copies` environments advanced `steps` steps in
@@ -128,7 +129,7 @@ BenchConfig parse_config(const std::vector<std::string>& args) {
   const ParsedArgs parsed =
       parse_args(args, {"--no-mujoco", "--json", "--floating-base", "--ground", "--no-contacts"},
                  {"--envs", "--threads", "--precision", "--steps", "--repeats", "--dt", "--mujoco-steps", "--solver",
-                  "--iterations"});
+                  "--iterations", "--spread"});
   if (parsed.positional.size() > 1) throw UsageError("bench takes at most one MODEL.urdf or SCENE.json");
   BenchConfig config;
   config.default_model = parsed.positional.empty();
@@ -147,6 +148,10 @@ BenchConfig parse_config(const std::vector<std::string>& args) {
   if (const std::string* v = parsed.value("--dt")) {
     config.dt = parse_number("--dt", *v);
     if (*config.dt <= 0) throw UsageError("--dt must be positive, not \"" + *v + "\"");
+  }
+  if (const std::string* v = parsed.value("--spread")) {
+    config.spread = parse_number("--spread", *v);
+    if (!(config.spread >= 0)) throw UsageError("--spread must be zero or positive, not \"" + *v + "\"");
   }
   if (const std::string* v = parsed.value("--threads")) {
     config.threads.clear();
@@ -201,18 +206,21 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   StepOptions options = scene.env.step;
   options.precision = precision;
   Simulator sim(model, config.copies, options, scene.env.dofs);
-  const Eigen::VectorXd& q0 = scene.env.initial_q;
+  const step_scene::CopyPoses poses = step_scene::copy_poses(model, scene.env.dofs, scene.env.drive_target_q,
+                                                             scene.env.initial_q, config.copies, config.spread);
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
-  const Eigen::VectorXd& target = scene.env.drive_target_q;
-  for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, target, v0);
-  sim.set_state_all(q0, v0);
+  auto reset = [&] {
+    for (int c = 0; c < config.copies; ++c) sim.set_state(c, poses.q0[c], v0);
+  };
+  for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, poses.target[c], v0);
+  reset();
   if (plan.empty()) plan = sim.describe_plan();
   for (int threads : config.threads) {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
     sim.step(config.steps);
     std::vector<double> seconds;
     for (int r = 0; r < config.repeats; ++r) {
-      sim.set_state_all(q0, v0);
+      reset();
       const auto start = std::chrono::steady_clock::now();
       sim.step(config.steps);
       seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
@@ -223,12 +231,12 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   result.precision = precision;
   result.bytes_per_copy = sim.bytes_per_copy();
   result.faults = sim.fault_count();
-  result.max_pose_error = pose_error(model, sim, target);
+  result.max_pose_error = pose_error(model, sim, poses.target[0]);
   result.contacts = sim.plan()[static_cast<int>(Stage::Contacts)].runs;
   {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism,
                                     static_cast<std::size_t>(config.threads.front()));
-    sim.set_state_all(q0, v0);
+    reset();
     sim.set_profiling(true);
     sim.step(config.steps);
     result.profile = sim.profile();
@@ -320,6 +328,7 @@ void print_text(const BenchReport& r, std::ostream& out) {
       << "build: " << build_description() << "\n"
       << "timing: median of " << count_of(c.repeats, "repeat") << " of " << count_of(c.steps, "step") << " of "
       << c.copies << (c.copies == 1 ? " copy" : " copies");
+  if (c.spread > 0) out << " (each copy's pose its own, within " << c.spread << " of the scene's per joint)";
   if (c.mujoco) out << " (MuJoCo: " << count_of(c.mujoco_steps, "step") << " of one mjData per thread)";
   out << ", after a warm-up\n";
   const int most = *std::max_element(c.threads.begin(), c.threads.end());
@@ -422,7 +431,8 @@ void print_json(const BenchReport& r, std::ostream& out) {
   out << ",\n  \"floating_base\": " << (r.floating_base ? "true" : "false")
       << ",\n  \"contacts\": " << (r.contacts ? "true" : "false")
       << ",\n  \"machine\": " << json::quote(r.machine) << ",\n  \"build\": " << json::quote(build_description())
-      << ",\n  \"copies\": " << c.copies << ",\n  \"steps\": " << c.steps << ",\n  \"repeats\": " << c.repeats
+      << ",\n  \"copies\": " << c.copies << ",\n  \"spread\": " << json::number(c.spread)
+      << ",\n  \"steps\": " << c.steps << ",\n  \"repeats\": " << c.repeats
       << ",\n  \"dt\": " << json::number(r.dt) << ",\n  \"driven_dofs\": " << r.driven_dofs << ",\n  \"rows\": [";
   for (std::size_t i = 0; i < r.rows.size(); ++i) {
     const Row& row = r.rows[i];

@@ -44,7 +44,7 @@ constexpr CommandUsage kCommands[] = {
     {"bench",
      "  bench [MODEL.urdf|SCENE.json] [--envs N] [--threads 1,2] [--precision float,double]\n"
      "        [--steps S] [--repeats R] [--dt DT] [--solver pgs|tgs] [--iterations N]\n"
-     "        [--mujoco-steps M] [--no-mujoco]\n"
+     "        [--mujoco-steps M] [--no-mujoco] [--spread S]\n"
      "        [--floating-base] [--ground] [--no-contacts] [--json]\n"
      "      env-steps per second of the simulation step, copies holding their initial\n"
      "      pose (default: anymal_b, floating), time by phase, MuJoCo beside it if built in\n"},

@@ -72,7 +72,7 @@ int run_dynamics(const std::vector<std::string>& args, std::ostream& out);
 
 // `lockstep bench [MODEL.urdf|SCENE.json] [--envs N] [--threads LIST] [--precision LIST]
 // [--steps S] [--repeats R] [--dt DT] [--solver pgs|tgs] [--iterations N] [--mujoco-steps M]
-// [--no-mujoco] [--floating-base]
+// [--no-mujoco] [--spread S] [--floating-base]
 // [--ground] [--no-contacts] [--json]`: env-steps per second of the simulation step,
 // its time by phase (and MuJoCo's speed when built with it).
 int run_bench(const std::vector<std::string>& args, std::ostream& out);

@@ -1,8 +1,9 @@
 // The scene the step benchmarks time (`lockstep bench`, bench/step_bench.cpp):
 // a model on its own, no contacts, gravity on, a PD drive on every DOF
 // except a floating root's, holding a standing pose, every copy starting
-// at rest in that pose. Header-only so that both programs share it without
-// a library of their own.
+// at rest in that pose (or, with copy_poses, each copy in a pose of its
+// own). Header-only so that both programs share it without a library of
+// their own.
 #pragma once
 
 #include "batch/copy_dynamics.hpp"
@@ -10,7 +11,9 @@
 #include "io/scene_file.hpp"
 
 #include <algorithm>
-
+#include <cstdint>
+#include <optional>
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
@@ -86,6 +89,50 @@ inline Scene make_scene(const Model& model, bool ground = false) {
   scene.q0 = scene.q_target;
   scene.v0 = Eigen::VectorXd::Zero(model.nv);
   return scene;
+}
+
+// Each copy's drive target and initial pose (at rest in it).
+struct CopyPoses {
+  std::vector<Eigen::VectorXd> target, q0;  // (copies) x (nq)
+};
+
+// Copies that differ, as a training run's do, so that the copies in a block
+// of lanes take their own paths through the step: copy c > 0 moves each
+// revolute or prismatic joint's target by an offset uniform in
+// [-spread, spread] (rad or m), kept within the joint's limits (dofs; a
+// target outside them goes no further out), from
+// a generator seeded by c (the same copies in every run, precision and
+// build), and starts at rest in that pose. A floating root moves up or down
+// by as much as the pose's resting height (resting_root_height) differs
+// from `target`'s, so that every copy starts as `initial_q` does (touching
+// the ground, where the scene's robot does). Copy 0, and every copy when
+// spread is 0, holds `target` from `initial_q`.
+inline CopyPoses copy_poses(const Model& model, const std::vector<DofSettings>& dofs, const Eigen::VectorXd& target,
+                            const Eigen::VectorXd& initial_q, int copies, double spread) {
+  const bool free_root = model.nbody > 0 && model.body_joint[0] == JointType::Free;
+  const std::optional<double> resting = free_root ? resting_root_height(model, target) : std::nullopt;
+  CopyPoses poses;
+  poses.target.assign(static_cast<std::size_t>(copies), target);
+  poses.q0.assign(static_cast<std::size_t>(copies), initial_q);
+  for (int c = 1; c < copies && spread > 0; ++c) {
+    std::mt19937_64 random(static_cast<std::uint64_t>(c));
+    Eigen::VectorXd& t = poses.target[c];
+    Eigen::VectorXd& q0 = poses.q0[c];
+    for (int b = 0; b < model.nbody; ++b) {
+      if (model.body_joint[b] != JointType::Revolute && model.body_joint[b] != JointType::Prismatic) continue;
+      const double unit = static_cast<double>(random() >> 11) * 0x1.0p-53;  // [0, 1), the same on every platform
+      const DofSettings& dof = dofs[model.body_dof_offset[b]];
+      const int i = model.body_q_offset[b];
+      // within the limits, or no further outside them than the target itself
+      t[i] = q0[i] = std::clamp(t[i] + spread * (2 * unit - 1), std::min(dof.lower, t[i]), std::max(dof.upper, t[i]));
+    }
+    if (const std::optional<double> height = resting ? resting_root_height(model, t) : std::nullopt) {
+      const int z = model.body_q_offset[0] + 2;
+      q0[z] += *height - *resting;
+      t[z] = q0[z];
+    }
+  }
+  return poses;
 }
 
 // A simulator of `copies` copies of the scene, each at its initial state
