@@ -70,7 +70,10 @@ inline double touching_height(const Model& model, const Eigen::VectorXd& q) {
   return resting_root_height(model, q).value_or(kBaseHeight);
 }
 
-// ground: the floating root starts where the feet touch the plane z = 0.
+// The standing pose (standing_pose, each target moved into its joint's
+// limits where it lies outside them) under PD drives, every copy at rest
+// in it; ground: the floating root starts where the feet touch the plane
+// z = 0.
 inline Scene make_scene(const Model& model, bool ground = false) {
   Scene scene;
   scene.dofs = default_dof_settings(model);
@@ -81,8 +84,12 @@ inline Scene make_scene(const Model& model, bool ground = false) {
     ++scene.driven_dofs;
   }
   scene.q_target = model.neutral_configuration();
-  for (const auto& [joint, target] : standing_pose(model))
-    scene.q_target[model.body_q_offset[model.joint_index(joint)]] = target;
+  for (const auto& [joint, target] : standing_pose(model)) {
+    // within the joint's limits (a hand's or an arm's 0 may lie outside them)
+    const int b = model.joint_index(joint);
+    const DofSettings& dof = scene.dofs[model.body_dof_offset[b]];
+    scene.q_target[model.body_q_offset[b]] = std::clamp(target, dof.lower, dof.upper);
+  }
   const double base_height = ground ? touching_height(model, scene.q_target) : kBaseHeight;
   for (int b = 0; b < model.nbody; ++b)
     if (model.body_joint[b] == JointType::Free) scene.q_target[model.body_q_offset[b] + 2] = base_height;
