@@ -78,9 +78,10 @@ TEST(CopyPoses, EveryCopyButTheFirstHoldsItsOwnPoseWithinTheSpreadAndTheLimits) 
   const int copies = 64;
   const step_scene::CopyPoses poses = step_scene::copy_poses(m, scene.env.dofs, scene.env.drive_target_q,
                                                              scene.env.initial_q, copies, spread);
-  ASSERT_EQ(poses.target.size(), static_cast<std::size_t>(copies));
-  EXPECT_EQ(poses.target[0], scene.env.drive_target_q);
-  EXPECT_EQ(poses.q0[0], scene.env.initial_q);
+  ASSERT_EQ(poses.target.cols(), copies);
+  ASSERT_EQ(poses.q0.cols(), copies);
+  EXPECT_EQ(poses.target_of(0), scene.env.drive_target_q);
+  EXPECT_EQ(poses.q0_of(0), scene.env.initial_q);
   const int z = m.body_q_offset[0] + 2;
   const double scene_height = *resting_root_height(m, scene.env.drive_target_q);
   for (int c = 1; c < copies; ++c) {
@@ -89,19 +90,19 @@ TEST(CopyPoses, EveryCopyButTheFirstHoldsItsOwnPoseWithinTheSpreadAndTheLimits) 
       if (!one_dof(m, b)) continue;
       const int i = m.body_q_offset[b];
       const DofSettings& dof = scene.env.dofs[m.body_dof_offset[b]];
-      EXPECT_LE(std::abs(poses.target[c][i] - scene.env.drive_target_q[i]), spread) << "copy " << c << " body " << b;
-      EXPECT_GE(poses.target[c][i], dof.lower);
-      EXPECT_LE(poses.target[c][i], dof.upper);
-      EXPECT_EQ(poses.q0[c][i], poses.target[c][i]);  // at rest in its own pose
-      moved += poses.target[c][i] != scene.env.drive_target_q[i];
+      EXPECT_LE(std::abs(poses.target_of(c)[i] - scene.env.drive_target_q[i]), spread) << "copy " << c << ", " << b;
+      EXPECT_GE(poses.target_of(c)[i], dof.lower);
+      EXPECT_LE(poses.target_of(c)[i], dof.upper);
+      EXPECT_EQ(poses.q0_of(c)[i], poses.target_of(c)[i]);  // at rest in its own pose
+      moved += poses.target_of(c)[i] != scene.env.drive_target_q[i];
     }
     EXPECT_GT(moved, 0) << "copy " << c;
-    EXPECT_NE(poses.target[c], poses.target[c - 1]);
+    EXPECT_NE(poses.target_of(c), poses.target_of(c - 1));
     // its lowest shape where the scene's is: the root moved by the change of
     // the resting height (1e-12 m: the sum of two heights of about 0.5 m)
-    const double height = *resting_root_height(m, poses.target[c]);
-    EXPECT_NEAR(poses.q0[c][z] - scene.env.initial_q[z], height - scene_height, 1e-12) << "copy " << c;
-    EXPECT_EQ(poses.target[c][z], poses.q0[c][z]);
+    const double height = *resting_root_height(m, poses.target_of(c));
+    EXPECT_NEAR(poses.q0_of(c)[z] - scene.env.initial_q[z], height - scene_height, 1e-12) << "copy " << c;
+    EXPECT_EQ(poses.target_of(c)[z], poses.q0_of(c)[z]);
   }
 }
 
@@ -114,7 +115,7 @@ TEST(CopyPoses, AJointsOffsetStopsAtItsLimit) {
   for (int c = 1; c < 16; ++c)
     for (int b = 0; b < m.nbody; ++b) {
       if (!one_dof(m, b)) continue;
-      const double x = poses.target[c][m.body_q_offset[b]];
+      const double x = poses.target_of(c)[m.body_q_offset[b]];
       const DofSettings& dof = scene.env.dofs[m.body_dof_offset[b]];
       EXPECT_GE(x, dof.lower);
       EXPECT_LE(x, dof.upper);
@@ -132,10 +133,11 @@ TEST(CopyPoses, AreTheSameInEveryCallAndAllTheSceneWithoutSpread) {
   };
   const step_scene::CopyPoses few = poses(8, 0.05), many = poses(32, 0.05), none = poses(8, 0.0);
   for (int c = 0; c < 8; ++c) {
-    EXPECT_EQ(few.target[c], many.target[c]) << "copy " << c;  // seeded by the copy, not by the batch
-    EXPECT_EQ(few.q0[c], many.q0[c]) << "copy " << c;
-    EXPECT_EQ(none.target[c], scene.env.drive_target_q);
-    EXPECT_EQ(none.q0[c], scene.env.initial_q);
+    EXPECT_EQ(few.target_of(c), many.target_of(c)) << "copy " << c;  // seeded by the copy, not by the batch
+    EXPECT_EQ(few.q0_of(c), many.q0_of(c)) << "copy " << c;
+    EXPECT_EQ(none.target_of(c), scene.env.drive_target_q);  // one column kept for all
+    EXPECT_EQ(none.target.cols(), 1);
+    EXPECT_EQ(none.q0_of(c), scene.env.initial_q);
   }
 }
 

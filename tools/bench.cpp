@@ -210,9 +210,9 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
                                                              scene.env.initial_q, config.copies, config.spread);
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
   auto reset = [&] {
-    for (int c = 0; c < config.copies; ++c) sim.set_state(c, poses.q0[c], v0);
+    for (int c = 0; c < config.copies; ++c) sim.set_state(c, poses.q0_of(c), v0);
   };
-  for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, poses.target[c], v0);
+  for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, poses.target_of(c), v0);
   reset();
   if (plan.empty()) plan = sim.describe_plan();
   for (int threads : config.threads) {
@@ -231,7 +231,7 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   result.precision = precision;
   result.bytes_per_copy = sim.bytes_per_copy();
   result.faults = sim.fault_count();
-  result.max_pose_error = pose_error(model, sim, poses.target[0]);
+  result.max_pose_error = pose_error(model, sim, poses.target_of(0));
   result.contacts = sim.plan()[static_cast<int>(Stage::Contacts)].runs;
   {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism,

@@ -98,9 +98,14 @@ inline Scene make_scene(const Model& model, bool ground = false) {
   return scene;
 }
 
-// Each copy's drive target and initial pose (at rest in it).
+// Each copy's drive target and initial pose (at rest in it): a column per
+// copy, or one column for all copies when they are all the same (so that a
+// million copies of one pose keep one).
 struct CopyPoses {
-  std::vector<Eigen::VectorXd> target, q0;  // (copies) x (nq)
+  Eigen::MatrixXd target, q0;  // (nq x copies), or (nq x 1)
+
+  Eigen::VectorXd target_of(int copy) const { return target.col(target.cols() == 1 ? 0 : copy); }
+  Eigen::VectorXd q0_of(int copy) const { return q0.col(q0.cols() == 1 ? 0 : copy); }
 };
 
 // Copies that differ, as a training run's do, so that the copies in a block
@@ -118,13 +123,12 @@ inline CopyPoses copy_poses(const Model& model, const std::vector<DofSettings>& 
                             const Eigen::VectorXd& initial_q, int copies, double spread) {
   const bool free_root = model.nbody > 0 && model.body_joint[0] == JointType::Free;
   const std::optional<double> resting = free_root ? resting_root_height(model, target) : std::nullopt;
-  CopyPoses poses;
-  poses.target.assign(static_cast<std::size_t>(copies), target);
-  poses.q0.assign(static_cast<std::size_t>(copies), initial_q);
-  for (int c = 1; c < copies && spread > 0; ++c) {
+  const int columns = spread > 0 ? copies : 1;
+  CopyPoses poses{target.replicate(1, columns), initial_q.replicate(1, columns)};
+  for (int c = 1; c < columns; ++c) {
     std::mt19937_64 random(static_cast<std::uint64_t>(c));
-    Eigen::VectorXd& t = poses.target[c];
-    Eigen::VectorXd& q0 = poses.q0[c];
+    auto t = poses.target.col(c);
+    auto q0 = poses.q0.col(c);
     for (int b = 0; b < model.nbody; ++b) {
       if (model.body_joint[b] != JointType::Revolute && model.body_joint[b] != JointType::Prismatic) continue;
       const double unit = static_cast<double>(random() >> 11) * 0x1.0p-53;  // [0, 1), the same on every platform
