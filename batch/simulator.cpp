@@ -248,7 +248,9 @@ int Simulator::copies() const { return engine_->copies(); }
 void Simulator::set_profiling(bool on) { engine_->set_profiling(on); }
 StepProfile Simulator::profile() const { return engine_->profile(); }
 int Simulator::row_count() const { return engine_->rows(); }
-std::size_t Simulator::bytes_per_copy() const { return engine_->bytes_per_copy(); }
+std::size_t Simulator::bytes_per_copy() const {
+  return engine_->bytes_per_copy() + sizeof(own_inertia_bodies_[0]) + sizeof(own_joint_parameters_[0]);
+}
 
 void Simulator::make_plan() const {
   int drives = 0, damping = 0, springs = 0, soft = 0, stribeck = 0, hard = 0, velocity = 0, coulomb = 0;

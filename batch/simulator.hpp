@@ -235,6 +235,10 @@ class Simulator {
   StepBatch<T>& batch();
   template <class T>
   const StepBatch<T>& batch() const;
+  // The bytes the simulator keeps for each copy: the batch's arrays (state,
+  // inputs, per-copy parameters, warm starts, contacts) and the per-copy
+  // flags of which parameters are the copy's own. Everything else it holds
+  // (the step's scratch, per worker block) does not grow with the copies.
   std::size_t bytes_per_copy() const;
   // What a snapshot's arrays mean: a hash of the model's joints and links
   // (names, types, DOF layout), the joint rows (kind and DOF), and the

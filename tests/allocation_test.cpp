@@ -1,8 +1,9 @@
 // The hot path allocates nothing: Simulator::step after its first step,
 // with contacts and joint rows, PGS and TGS, float and double, and
-// VecEnv::step with and without auto-reset. This test program defines
-// malloc and its kin, which count every allocation of any thread while
-// `counting` is set. They run on one thread and on two (the step's
+// VecEnv::step with and without auto-reset; and a simulator keeps
+// bytes_per_copy() per copy and nothing else per copy. This test program
+// defines malloc and its kin, which count every allocation of any thread,
+// and the heap bytes it holds, while `counting` is set. They run on one thread and on two (the step's
 // workspace of every thread slot is made before its blocks run); the
 // uncounted first steps let TBB start its workers.
 #include "batch/simulator.hpp"
@@ -14,11 +15,13 @@
 #include <tbb/global_control.h>
 
 #include <execinfo.h>
+#include <malloc.h>
 
 #include <atomic>
 #include <cerrno>
 #include <cstddef>
 #include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -26,6 +29,7 @@ namespace {
 
 std::atomic<bool> counting{false};
 std::atomic<long> allocations{0};
+std::atomic<long> live_bytes{0};  // allocated minus freed while counting, as malloc_usable_size gives them
 
 // The call stacks of the first few counted allocations, kept in static
 // arrays (backtrace() allocates nothing once warmed up below), so that a
@@ -91,32 +95,40 @@ void* __libc_realloc(void* p, std::size_t size);
 void* __libc_memalign(std::size_t alignment, std::size_t size);
 void __libc_free(void* p);
 
+// p's bytes into (sign +1) or out of (-1) live_bytes while counting.
+void* note_bytes(void* p, long sign) {
+  if (p && counting.load(std::memory_order_relaxed))
+    live_bytes.fetch_add(sign * static_cast<long>(malloc_usable_size(p)), std::memory_order_relaxed);
+  return p;
+}
+
 void* malloc(std::size_t size) {
   note_allocation();
-  return __libc_malloc(size);
+  return note_bytes(__libc_malloc(size), 1);
 }
 void* calloc(std::size_t count, std::size_t size) {
   note_allocation();
-  return __libc_calloc(count, size);
+  return note_bytes(__libc_calloc(count, size), 1);
 }
 void* realloc(void* p, std::size_t size) {
   note_allocation();
-  return __libc_realloc(p, size);
+  note_bytes(p, -1);
+  return note_bytes(__libc_realloc(p, size), 1);
 }
 void* memalign(std::size_t alignment, std::size_t size) {
   note_allocation();
-  return __libc_memalign(alignment, size);
+  return note_bytes(__libc_memalign(alignment, size), 1);
 }
 void* aligned_alloc(std::size_t alignment, std::size_t size) {
   note_allocation();
-  return __libc_memalign(alignment, size);
+  return note_bytes(__libc_memalign(alignment, size), 1);
 }
 int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
   note_allocation();
-  *out = __libc_memalign(alignment, size);
+  *out = note_bytes(__libc_memalign(alignment, size), 1);
   return *out ? 0 : ENOMEM;
 }
-void free(void* p) { __libc_free(p); }
+void free(void* p) { __libc_free(note_bytes(p, -1)); }
 }
 #endif
 
@@ -185,6 +197,49 @@ TEST(Allocations, StepAllocatesNothingAfterItsFirst) {
             << counted_allocation_stacks();
         EXPECT_GT(sim.contacts(0).size(), 0u) << "the scene has contacts";
       }
+}
+
+// What a simulator holds: its heap bytes, built and stepped once, grow by
+// bytes_per_copy() per copy (state, inputs, per-copy parameters, warm
+// starts, contacts) and by nothing else per copy; the step's scratch is
+// per worker block. So N copies of anymal_b standing take about
+// N bytes_per_copy(): a million 2.45 GiB in float (`lockstep bench
+// --envs 1000000` peaked at 2.47 GiB resident, docs/performance.md).
+// Between 1024 and 16384 copies the slope may exceed bytes_per_copy() only
+// by the heap's rounding of each array (malloc_usable_size, whole pages for
+// large blocks: up to 4 KiB for each of about 40 arrays, 11 bytes a copy
+// over the 15360 copies between them), never fall short of it.
+TEST(Allocations, ASimulatorHoldsBytesPerCopyForEachCopyAndNothingElsePerCopy) {
+  if (!kCounts) GTEST_SKIP() << kNotCounted;
+  const Model model = test::load_shared_model("anymal_b", true);
+  const step_scene::Scene scene = step_scene::make_scene(model, true);
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  for (Precision precision : {Precision::Float, Precision::Double}) {
+    StepOptions o = test::scene_options(precision, SolverType::PGS);
+    o.contacts.ground = true;
+    Simulator(model, 64, o, scene.dofs).step();  // TBB's first loops, uncounted
+    std::size_t per_copy = 0;
+    const auto held = [&](int copies) {
+      live_bytes = 0;
+      counting = true;
+      auto sim = std::make_unique<Simulator>(model, copies, o, scene.dofs);
+      sim->set_state_all(scene.q0, Eigen::VectorXd::Zero(model.nv));
+      sim->step();
+      counting = false;
+      const long bytes = live_bytes.load();
+      per_copy = sim->bytes_per_copy();
+      counting = true;
+      sim.reset();
+      counting = false;
+      EXPECT_LE(std::abs(live_bytes.load()), 4096) << copies << " copies: their simulator gave back what it held";
+      return bytes;
+    };
+    const long small = held(1024), large = held(16384);
+    const double slope = static_cast<double>(large - small) / (16384 - 1024);
+    EXPECT_GE(slope, static_cast<double>(per_copy)) << precision_name(precision);
+    EXPECT_LE(slope, static_cast<double>(per_copy) + 11) << precision_name(precision);
+    EXPECT_GT(per_copy, 0u);
+  }
 }
 
 // VecEnv::step: the actions, the steps, the observations and the
