@@ -158,8 +158,10 @@ TEST(Allocations, TheCountCanSeeOne) {
   EXPECT_EQ(allocations_of([] { Eigen::VectorXd v(7); kept = reinterpret_cast<int*>(v.data()); }), 1) << "Eigen's own";
 }
 
-// anymal_b standing on the ground (4 foot contacts, 24 joint rows), 200
-// copies (a partial last block). The first step runs on one thread, so
+// anymal_b landing on the ground, 200 copies (a partial last block), each
+// in a pose of its own (step_scene::copy_poses): blocks whose lanes hold 3
+// to 10 contacts, Coulomb friction rows on the legs' joints taken into the
+// solve beside them, 24 limit rows; 50 counted steps. The first step runs on one thread, so
 // that on two threads the second one steps its first block while counted.
 // Before that, another simulator of the same scene steps uncounted on as
 // many threads: TBB keeps its task objects in per-thread pools that grow
@@ -172,30 +174,47 @@ TEST(Allocations, StepAllocatesNothingAfterItsFirst) {
   const Model model = test::load_shared_model("anymal_b", true);
   const step_scene::Scene scene = step_scene::make_scene(model, true);
   const int copies = 200;
+  // Coulomb friction on the legs' joints (rows that act while a joint
+  // moves), so that rounds take joint rows beside the contacts
+  std::vector<DofSettings> dofs = scene.dofs;
+  for (int k = 6; k < model.nv; ++k) dofs[k].friction = 2.0;
+  // each copy in a pose of its own, landing on its own feet: blocks whose
+  // lanes hold different numbers of contacts
+  const step_scene::CopyPoses poses = step_scene::copy_poses(model, dofs, scene.q_target, scene.q0, copies, 0.3);
   for (int threads : {1, 2})
     for (Precision precision : {Precision::Float, Precision::Double})
       for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
         tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, threads);
         StepOptions o = test::scene_options(precision, solver);
         o.contacts.ground = true;
-        const auto standing = [&] {
-          Simulator sim(model, copies, o, scene.dofs);
+        o.record_applied_torque = true;
+        const auto landing = [&] {
+          Simulator sim(model, copies, o, dofs);
           for (int c = 0; c < copies; ++c) {
-            sim.set_state(c, scene.q0, Eigen::VectorXd::Zero(model.nv));
-            sim.set_drive_target(c, scene.q_target, Eigen::VectorXd::Zero(model.nv));
+            sim.set_state(c, poses.q0_of(c), Eigen::VectorXd::Zero(model.nv));
+            sim.set_drive_target(c, poses.target_of(c), Eigen::VectorXd::Zero(model.nv));
           }
           return sim;
         };
-        standing().step(20);
-        Simulator sim = standing();
+        landing().step(20);
+        Simulator sim = landing();
         {
           tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
           sim.step();
         }
-        EXPECT_EQ(allocations_of([&] { sim.step(5); }), 0)
+        EXPECT_EQ(allocations_of([&] { sim.step(50); }), 0)
             << threads << " thread(s), " << precision_name(precision) << " " << solver_name(solver)
             << counted_allocation_stacks();
         EXPECT_GT(sim.contacts(0).size(), 0u) << "the scene has contacts";
+        int rubbing = 0, fewest = 100, most = 0;
+        for (int c = 0; c < copies; ++c) {
+          rubbing += sim.applied_torque(c).friction.norm() > 0;
+          const int n = static_cast<int>(sim.contacts(c).size());
+          fewest = std::min(fewest, n);
+          most = std::max(most, n);
+        }
+        EXPECT_GT(rubbing, 0) << "joint friction rows act";
+        EXPECT_LT(fewest, most) << "copies hold different numbers of contacts";
       }
 }
 
