@@ -112,13 +112,13 @@ struct CopyPoses {
 // of lanes take their own paths through the step: copy c > 0 moves each
 // revolute or prismatic joint's target by an offset uniform in
 // [-spread, spread] (rad or m), kept within the joint's limits (dofs; a
-// target outside them goes no further out), from
-// a generator seeded by c (the same copies in every run, precision and
-// build), and starts at rest in that pose. A floating root moves up or down
-// by as much as the pose's resting height (resting_root_height) differs
-// from `target`'s, so that every copy starts as `initial_q` does (touching
-// the ground, where the scene's robot does). Copy 0, and every copy when
-// spread is 0, holds `target` from `initial_q`.
+// target outside them goes no further out), from a generator seeded by c
+// (the same copies in every run, precision and build), and starts at rest
+// in that pose. A floating root moves up or down by as much as the pose's
+// resting height (resting_root_height) differs from `target`'s, so that
+// every copy starts as `initial_q` does (touching the ground, where the
+// scene's robot does). Copy 0, and every copy when spread is 0, holds
+// `target` from `initial_q`.
 inline CopyPoses copy_poses(const Model& model, const std::vector<DofSettings>& dofs, const Eigen::VectorXd& target,
                             const Eigen::VectorXd& initial_q, int copies, double spread) {
   const bool free_root = model.nbody > 0 && model.body_joint[0] == JointType::Free;
