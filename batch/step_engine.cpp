@@ -595,7 +595,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
   if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, contacts, contact_rows);
-  s.joint_block = s.contact_columns = s.coupling = false;  // built by the first round that needs them
+  s.joint_block = s.contact_columns = false;  // built by the first round that needs them
   s.contact_rows_spilled = false;
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
   // the joint rows a lane needs at the free velocity (solve_blocks)
@@ -606,13 +606,14 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   }
 }
 
-// D's block of the joint rows (and their columns of Mt^-1), and its
-// coupling with the contacts: built the first time a solve needs them.
+// The columns of Mt^-1 that D's joint rows and their coupling with the
+// contacts are read off (build_round): built the first time a solve needs
+// them.
 template <class L>
 void StepEngine<L>::build_joint_block(Scratch& s) const {
   if (s.joint_block) return;
-  joint_row_delassus<L>(km_, row_specs_, column_dof_, s.ws, s.rows);
-  build_coupling(s);
+  joint_row_columns<L>(km_, column_dof_, s.ws, s.rows);
+  build_contact_columns(s);
   s.joint_block = true;
 }
 
@@ -622,16 +623,6 @@ void StepEngine<L>::build_contact_columns(Scratch& s) const {
   if (s.contact_columns) return;
   if (s.contacts.slots > 0) contact_columns<L>(km_, factors(s), s.contacts);
   s.contact_columns = true;
-}
-
-// D's coupling of the joint rows with the contact rows.
-template <class L>
-void StepEngine<L>::build_coupling(Scratch& s) const {
-  if (s.coupling) return;
-  build_contact_columns(s);
-  const int mj = static_cast<int>(row_specs_.size());
-  if (s.contacts.slots > 0) contact_joint_delassus<L>(row_specs_, s.rows.sigma, mj, s.contacts, s.rows.rows);
-  s.coupling = true;
 }
 
 // For check_held_rows, the round's coupling of every distinct joint-row DOF
@@ -797,7 +788,10 @@ void StepEngine<L>::spill_contact_rows(Scratch& s) const {
 
 // A round's rows in s.needed: the joint rows some lane needs (held at zero
 // in the others), then the contact rows. A round of the contact rows
-// alone solves them where prepare_rows built them.
+// alone solves them where prepare_rows built them. D's entries of the
+// joint rows are read off the columns of Mt^-1 here (joint_row_delassus,
+// contact_joint_delassus), only those of the rows the round takes; the
+// contacts' own block from where spill_contact_rows put it.
 template <class L>
 void StepEngine<L>::build_round(Scratch& s) const {
   const RowBlock<L>& rows = s.rows.rows;
@@ -814,10 +808,21 @@ void StepEngine<L>::build_round(Scratch& s) const {
   spill_contact_rows(s);
   sub.m = n;
   const lane::mask_t<L> all(true);
+  const int nv = km_.nv;
+  const int* source = s.needed_source.data();
   for (int a = 0; a < n; ++a) {
-    const int r = s.needed_source[a];
+    const int r = source[a];
     copy_row(rows, r, sub, a, nj - mj, a < nj ? s.need[r] : all);  // contact friction: its normal
-    for (int b = 0; b < n; ++b) sub.D[a * n + b] = rows.D[r * m + s.needed_source[b]];
+    L* D = &sub.D[a * n];
+    if (a < nj) {
+      for (int b = 0; b < nj; ++b) D[b] = joint_row_delassus<L>(row_specs_, s.rows, nv, r, source[b]);
+      for (int b = nj; b < n; ++b)
+        D[b] = contact_joint_delassus<L>(s.rows.sigma[r], row_specs_[r].dof, s.contacts, source[b] - mj);
+    } else {
+      for (int b = 0; b < nj; ++b)
+        D[b] = contact_joint_delassus<L>(s.rows.sigma[source[b]], row_specs_[source[b]].dof, s.contacts, r - mj);
+      for (int b = nj; b < n; ++b) D[b] = rows.D[r * m + source[b]];
+    }
   }
 }
 

@@ -129,9 +129,8 @@ class StepEngine final : public Simulator::Engine {
     L input_fault;
     bool solving = false;      // the block has rows to solve this step
     bool joint_rows_needed = false;  // some lane needs a joint row at the free velocity
-    bool joint_block = false;  // D's joint rows block is built (build_joint_block)
+    bool joint_block = false;  // the columns of Mt^-1 D's joint rows read are built (build_joint_block)
     bool contact_columns = false;  // the contact rows' Mt^-1 J^T are built (build_contact_columns)
-    bool coupling = false;     // D's coupling of joint and contact rows is built (build_coupling)
     bool contact_rows_spilled = false;  // the contact rows are in `rows` too (spill_contact_rows)
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
   };
@@ -166,7 +165,6 @@ class StepEngine final : public Simulator::Engine {
   void prepare_rows(int block, const T* q, T h, Scratch& s);
   void build_joint_block(Scratch& s) const;
   void build_contact_columns(Scratch& s) const;
-  void build_coupling(Scratch& s) const;
   void build_held_coupling(Scratch& s) const;
   void solve_blocks(Scratch* s, int count, T h);
   L contact_warm_start(const Scratch& s, int i) const;

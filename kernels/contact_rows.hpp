@@ -469,15 +469,12 @@ void contact_columns(const KernelModel<lane::scalar_t<L>>& km, const lane::scala
   }
 }
 
-// The coupling of the contact rows with the joint rows [0, first) (J_r =
-// sigma_r e_dof): D_ri = sigma_r X_i[dof_r]. Needs contact_columns.
+// The coupling of contact row i with a joint row on DOF `dof` with sign
+// sigma (J_r = sigma e_dof): D_ri = D_ir = sigma X_i[dof]. Needs
+// contact_columns.
 template <class L>
-void contact_joint_delassus(const std::vector<JointRowSpec<lane::scalar_t<L>>>& joint_specs, const std::vector<L>& sigma,
-                            int first, const ContactScratch<L>& s, RowBlock<L>& rows) {
-  const int nv = s.nv, m = rows.m, mc = s.k * s.slots;
-  for (int r = 0; r < first; ++r)
-    for (int i = 0; i < mc; ++i)
-      rows.D[r * m + first + i] = rows.D[(first + i) * m + r] = sigma[r] * s.X[i * nv + joint_specs[r].dof];
+inline L contact_joint_delassus(const L& sigma, int dof, const ContactScratch<L>& s, int i) {
+  return sigma * s.X[i * s.nv + dof];
 }
 
 // s.dv = Mt^-1 J^T x = L^-1 (sum_i x_i Z_i): the velocity change of the

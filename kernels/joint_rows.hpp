@@ -149,13 +149,12 @@ void factor_step_mass_matrix(const KernelModel<lane::scalar_t<L>>& km, const lan
   ltdl_factor<L>(km, H);
 }
 
-// The joint rows' block of the Delassus matrix (rows [0, specs.size()) of
-// an m x m D), one solve with the factored Mt (factor_step_mass_matrix) per
-// distinct row DOF; the solves' columns are what add_row_impulses applies.
+// The columns Mt^-1 e_d of the distinct row DOFs d (column_dof), one solve
+// with the factored Mt (factor_step_mass_matrix) each: what
+// add_row_impulses applies, and what joint_row_delassus reads D off.
 template <class L>
-void joint_row_delassus(const KernelModel<lane::scalar_t<L>>& km,
-                        const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const std::vector<int>& column_dof,
-                        const Workspace<L>& ws, JointRowScratch<L>& s) {
+void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const std::vector<int>& column_dof,
+                       const Workspace<L>& ws, JointRowScratch<L>& s) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
@@ -165,10 +164,17 @@ void joint_row_delassus(const KernelModel<lane::scalar_t<L>>& km,
     for (int r = 0; r < nv; ++r) lane::store(L(T(r == column_dof[c] ? 1 : 0)), column + r * W);
     ltdl_solve<L>(km, H, column);
   }
-  const int m = s.rows.m, mj = static_cast<int>(specs.size());  // joint rows come first
-  for (int r = 0; r < mj; ++r)
-    for (int c = 0; c < mj; ++c)
-      s.rows.D[r * m + c] = s.sigma[r] * s.sigma[c] * s.columns[specs[c].column * nv + specs[r].dof];
+}
+
+// Entry (r, c) of the joint rows' block of the Delassus matrix,
+// sigma_r sigma_c (Mt^-1)_{dof_r, dof_c}, read off c's column
+// (joint_row_columns). A solve takes the entries of the rows it needs
+// only: a scene's joint rows are mostly slack (limits not reached), so
+// their whole block would be mostly unread.
+template <class L>
+inline L joint_row_delassus(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const JointRowScratch<L>& s,
+                            int nv, int r, int c) {
+  return s.sigma[r] * s.sigma[c] * s.columns[specs[c].column * nv + specs[r].dof];
 }
 
 // out[k] = base[k] + sum_r sigma_r x_r (Mt^-1 e_{dof_r})[k]: the velocity
