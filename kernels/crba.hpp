@@ -227,11 +227,14 @@ void ltdl_transpose_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::
 }
 
 // Solves (L^T D L) x = b in place on x (nv per lane), with H from ltdl_factor.
+// With `dofs` (as for ltdl_transpose_solve: b zero outside them), the
+// first pass touches only them, with the same bits.
 template <class L>
-void ltdl_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
+void ltdl_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x,
+                const int* dofs = nullptr, int n = -1) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
-  ltdl_transpose_solve<L>(km, H, x);
+  ltdl_transpose_solve<L>(km, H, x, dofs, n);
   for (int k = 0; k < nv; ++k) lane::store(lane::load<L>(x + k * W) / lane::load<L>(H + (k * nv + k) * W), x + k * W);
   ltdl_lower_solve<L>(km, H, x);
 }
