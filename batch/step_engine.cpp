@@ -595,7 +595,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
   if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, contacts, contact_rows);
-  s.joint_block = s.contact_columns = false;  // built by the first round that needs them
+  s.joint_columns = s.contact_columns = false;  // built by the first round that needs them
   s.contact_rows_spilled = false;
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
   // the joint rows a lane needs at the free velocity (solve_blocks)
@@ -610,11 +610,11 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
 // contacts are read off (build_round): built the first time a solve needs
 // them.
 template <class L>
-void StepEngine<L>::build_joint_block(Scratch& s) const {
-  if (s.joint_block) return;
+void StepEngine<L>::build_joint_columns(Scratch& s) const {
+  if (s.joint_columns) return;
   joint_row_columns<L>(km_, column_dof_, s.ws, s.rows);
   build_contact_columns(s);
-  s.joint_block = true;
+  s.joint_columns = true;
 }
 
 // The contact rows' columns Mt^-1 J^T (contact_columns).
@@ -663,11 +663,11 @@ void StepEngine<L>::finish_rows(int block, T h, Scratch& s) {
   if (options_.solver != SolverType::TGS) {
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k] + contacts.dv[k]);
   } else {
-    if (s.joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
+    if (s.joint_columns) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
     if (contact_rows) add_contact_impulses<L>(km_, H, rows.lambda.data() + mj, contacts, s.u1.data());
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
     for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
-    if (s.joint_block) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
+    if (s.joint_columns) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
     if (contact_rows) add_contact_impulses<L>(km_, H, rows.lambda_sum.data() + mj, contacts, s.displacement.data());
     for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
   }
@@ -804,7 +804,7 @@ void StepEngine<L>::build_round(Scratch& s) const {
   const int n = nj + m - mj;
   for (int a = nj; a < n; ++a) s.needed_source[a] = mj + a - nj;
   if (nj == 0) return;  // rounds only add joint rows: this is the first, from the warm start
-  build_joint_block(s);
+  build_joint_columns(s);
   spill_contact_rows(s);
   sub.m = n;
   const lane::mask_t<L> all(true);

@@ -129,7 +129,7 @@ class StepEngine final : public Simulator::Engine {
     L input_fault;
     bool solving = false;      // the block has rows to solve this step
     bool joint_rows_needed = false;  // some lane needs a joint row at the free velocity
-    bool joint_block = false;  // the columns of Mt^-1 D's joint rows read are built (build_joint_block)
+    bool joint_columns = false;  // the joint rows' columns of Mt^-1 are built (build_joint_columns)
     bool contact_columns = false;  // the contact rows' Mt^-1 J^T are built (build_contact_columns)
     bool contact_rows_spilled = false;  // the contact rows are in `rows` too (spill_contact_rows)
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
@@ -163,7 +163,7 @@ class StepEngine final : public Simulator::Engine {
   // solve_round or the pair's sweeps, end_round), and finish_rows puts s.u1
   // (and TGS's displacement) after them.
   void prepare_rows(int block, const T* q, T h, Scratch& s);
-  void build_joint_block(Scratch& s) const;
+  void build_joint_columns(Scratch& s) const;
   void build_contact_columns(Scratch& s) const;
   void build_held_coupling(Scratch& s) const;
   void solve_blocks(Scratch* s, int count, T h);
