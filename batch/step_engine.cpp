@@ -83,15 +83,10 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   }
 
   // Solver rows, DOF by DOF: position limit, velocity limit, friction.
-  std::vector<int> column_of(nv, -1);
   auto add_row = [&](JointRowKind kind, int k, double a, double b) {
-    if (column_of[k] < 0) {
-      column_of[k] = static_cast<int>(column_dof_.size());
-      column_dof_.push_back(k);
-    }
     const int body = model.dof_body[k];
     const int q_index = model.body_q_offset[body] + (k - model.body_dof_offset[body]);
-    row_specs_.push_back({kind, k, q_index, column_of[k], static_cast<T>(a), static_cast<T>(b)});
+    row_specs_.push_back({kind, k, q_index, columns_.column_of(km_, k), static_cast<T>(a), static_cast<T>(b)});
   };
   // A row stage forced On gets a row on every DOF it can act on, even where
   // the scene gives it nothing to do (infinite limits, zero friction): such
@@ -132,7 +127,7 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   int candidates = 0;
   if (plan.contacts) candidates = set_up_contacts(copies, options.contacts, pairs);
   else make_contact_arrays(copies, 0, 0, options.contacts);
-  const int rows = static_cast<int>(row_specs_.size()), columns = static_cast<int>(column_dof_.size());
+  const int rows = static_cast<int>(row_specs_.size()), columns = columns_.size();
   scratch_rows_ = rows, scratch_columns_ = columns, scratch_candidates_ = candidates;
   reserve_scratch(tbb::this_task_arena::max_concurrency());
 }
@@ -612,7 +607,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
 template <class L>
 void StepEngine<L>::build_joint_columns(Scratch& s) const {
   if (s.joint_columns) return;
-  joint_row_columns<L>(km_, column_dof_, s.ws, s.rows);
+  joint_row_columns<L>(km_, columns_, s.ws, s.rows);
   build_contact_columns(s);
   s.joint_columns = true;
 }
@@ -637,8 +632,8 @@ void StepEngine<L>::build_held_coupling(Scratch& s) const {
   const int nv = km_.nv, n = sub.m, nj = s.needed_joint_rows;
   build_contact_columns(s);
   const JointRowScratch<L>& rs = s.rows;
-  for (std::size_t d = 0; d < column_dof_.size(); ++d) {
-    const int dof = column_dof_[d];
+  for (int d = 0; d < columns_.size(); ++d) {
+    const int dof = columns_.dof[d];
     L* C = &s.held_coupling[d * n];
     for (int a = 0; a < nj; ++a) {
       const int r = s.needed_source[a];
@@ -888,13 +883,15 @@ void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
   const int mj = static_cast<int>(row_specs_.size()), iterations = options_.iterations;
   const RowBlock<L>& rows = s.rows.rows;
   const RowBlock<L>& sub = s.needed;
-  const int n = sub.m, columns = static_cast<int>(column_dof_.size());
+  const int n = sub.m, columns = columns_.size();
   L* velocity = s.dof_velocity.data();
   int d = 0;
   for (; d + 4 <= columns; d += 4)
-    held_dof_velocities<4>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), column_dof_.data(), d, velocity);
+    held_dof_velocities<4>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), columns_.dof.data(), d,
+                           velocity);
   for (; d < columns; ++d)
-    held_dof_velocities<1>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), column_dof_.data(), d, velocity);
+    held_dof_velocities<1>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), columns_.dof.data(), d,
+                           velocity);
   // sigma and the displacements through local pointers, their data
   // pointers loaded once rather than per row (the mask store below may
   // alias them)

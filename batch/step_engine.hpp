@@ -203,7 +203,7 @@ class StepEngine final : public Simulator::Engine {
   KernelModel<T> km_;
   JointTermModel<T> jm_;
   std::vector<JointRowSpec<T>> row_specs_;
-  std::vector<int> column_dof_;
+  JointRowColumns columns_;  // the DOFs joint rows act on
   std::vector<ContactPairSpec<T>> contact_pairs_;  // empty unless plan.contacts
   // With conserve_linear_momentum: the floating articulations' root bodies,
   // and per body the root whose momentum it counts in (-1: none)

@@ -32,8 +32,7 @@ struct JointRowScratch {
   RowBlock<L> rows;
   std::vector<L> sigma;    // (m)
   std::vector<L> columns;  // (ncolumn x nv)
-  std::vector<int> path;   // (nv) joint_row_columns's: a DOF's ancestors and itself, ascending
-  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), columns(ncolumn * nv), path(nv) {}
+  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), columns(ncolumn * nv) {}
 };
 
 // One joint row of one block, per lane, from q and the free velocity u*.
@@ -150,26 +149,44 @@ void factor_step_mass_matrix(const KernelModel<lane::scalar_t<L>>& km, const lan
   ltdl_factor<L>(km, H);
 }
 
-// The columns Mt^-1 e_d of the distinct row DOFs d (column_dof), one solve
-// with the factored Mt (factor_step_mass_matrix) each: what
-// add_row_impulses applies, and what joint_row_delassus reads D off. e_d
-// is zero off d's path to the root, so the solve's first pass (L^-T)
-// runs on that path only (a leg's knee: 9 of anymal_b's 18 DOFs).
+// The distinct DOFs that joint rows act on, each with its path to the root
+// (its ancestors and itself, ascending): column c's DOF is dof[c], its path
+// path[path_begin[c], path_begin[c + 1]).
+struct JointRowColumns {
+  std::vector<int> dof, path, path_begin{0};
+
+  // Column of DOF k, added with its path if new.
+  template <class T>
+  int column_of(const KernelModel<T>& km, int k) {
+    for (std::size_t c = 0; c < dof.size(); ++c)
+      if (dof[c] == k) return static_cast<int>(c);
+    dof.push_back(k);
+    const int first = km.dof_ancestor_begin[k], n = km.dof_ancestor_begin[k + 1] - first;
+    for (int t = n - 1; t >= 0; --t) path.push_back(km.dof_ancestors[first + t]);  // stored nearest first
+    path.push_back(k);
+    path_begin.push_back(static_cast<int>(path.size()));
+    return static_cast<int>(dof.size()) - 1;
+  }
+  int size() const { return static_cast<int>(dof.size()); }
+};
+
+// The columns Mt^-1 e_d of the distinct row DOFs d, one solve with the
+// factored Mt (factor_step_mass_matrix) each: what add_row_impulses
+// applies, and what joint_row_delassus reads D off. e_d is zero off d's
+// path to the root, so the solve's first pass (L^-T) runs on that path
+// only (a leg's knee: 9 of anymal_b's 18 DOFs).
 template <class L>
-void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const std::vector<int>& column_dof,
+void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const JointRowColumns& columns,
                        const Workspace<L>& ws, JointRowScratch<L>& s) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
   const T* H = reinterpret_cast<const T*>(ws.matrix.data());
-  for (std::size_t c = 0; c < column_dof.size(); ++c) {
-    const int d = column_dof[c];
-    const int first = km.dof_ancestor_begin[d], n = km.dof_ancestor_begin[d + 1] - first;
-    for (int t = 0; t < n; ++t) s.path[t] = km.dof_ancestors[first + n - 1 - t];  // nearest first, reversed
-    s.path[n] = d;
+  for (int c = 0; c < columns.size(); ++c) {
     T* column = reinterpret_cast<T*>(&s.columns[c * nv]);
-    for (int r = 0; r < nv; ++r) lane::store(L(T(r == d ? 1 : 0)), column + r * W);
-    ltdl_solve<L>(km, H, column, s.path.data(), n + 1);
+    for (int r = 0; r < nv; ++r) lane::store(L(T(r == columns.dof[c] ? 1 : 0)), column + r * W);
+    const int first = columns.path_begin[c];
+    ltdl_solve<L>(km, H, column, columns.path.data() + first, columns.path_begin[c + 1] - first);
   }
 }
 
