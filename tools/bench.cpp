@@ -243,9 +243,8 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
     sim.set_profiling(false);
   }
   // the root's z is q[2] of a Free root only (a fixed base may have nq < 3)
-  const bool free_root = model.nbody > 0 && model.body_joint[0] == JointType::Free;
   for (int c = 0; c < sim.copies(); ++c) {
-    if (free_root) result.mean_height += sim.q(c)[2] / sim.copies();
+    if (step_scene::free_root(model)) result.mean_height += sim.q(c)[2] / sim.copies();
     for (const Contact& contact : sim.contacts(c)) result.mean_contacts += contact.force.norm() > 0 ? 1.0 / sim.copies() : 0.0;
   }
   return result;
@@ -537,7 +536,7 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
     peer.urdf_path = scene.model_path;
     peer.floating_base = scene.floating_base;
     peer.dt = scene.env.step.dt;
-    const int first = model.nbody > 0 && model.body_joint[0] == JointType::Free ? 6 : 0;
+    const int first = step_scene::free_root(model) ? 6 : 0;
     peer.kp = first < model.nv ? scene.env.dofs[first].drive_stiffness : 0.0;
     peer.kd = first < model.nv ? scene.env.dofs[first].drive_damping : 0.0;
     peer.targets = joint_targets(scene);

@@ -64,6 +64,10 @@ struct Scene {
   int driven_dofs = 0;
 };
 
+// True when the model's first body floats (a Free joint): its q starts
+// with the root's position and orientation.
+inline bool free_root(const Model& model) { return model.nbody > 0 && model.body_joint[0] == JointType::Free; }
+
 // The root height at which the pose q's lowest shape (a foot) touches the
 // plane z = 0; kBaseHeight when the model has no shapes.
 inline double touching_height(const Model& model, const Eigen::VectorXd& q) {
@@ -121,8 +125,7 @@ struct CopyPoses {
 // `target` from `initial_q`.
 inline CopyPoses copy_poses(const Model& model, const std::vector<DofSettings>& dofs, const Eigen::VectorXd& target,
                             const Eigen::VectorXd& initial_q, int copies, double spread) {
-  const bool free_root = model.nbody > 0 && model.body_joint[0] == JointType::Free;
-  const std::optional<double> resting = free_root ? resting_root_height(model, target) : std::nullopt;
+  const std::optional<double> resting = free_root(model) ? resting_root_height(model, target) : std::nullopt;
   const int columns = spread > 0 ? copies : 1;
   CopyPoses poses{target.replicate(1, columns), initial_q.replicate(1, columns)};
   for (int c = 1; c < columns; ++c) {
