@@ -3,9 +3,10 @@
 // VecEnv::step with and without auto-reset; and a simulator keeps
 // bytes_per_copy() per copy and nothing else per copy. This test program
 // defines malloc and its kin, which count every allocation of any thread,
-// and the heap bytes it holds, while `counting` is set. They run on one thread and on two (the step's
-// workspace of every thread slot is made before its blocks run); the
-// uncounted first steps let TBB start its workers.
+// and the heap bytes it holds, while `counting` is set. The steps run on
+// one thread and on two (the step's workspace of every thread slot is made
+// before its blocks run); the uncounted first steps let TBB start its
+// workers.
 #include "batch/simulator.hpp"
 #include "batch/vec_env.hpp"
 #include "tests/sim_support.hpp"
@@ -161,8 +162,9 @@ TEST(Allocations, TheCountCanSeeOne) {
 // anymal_b landing on the ground, 200 copies (a partial last block), each
 // in a pose of its own (step_scene::copy_poses): blocks whose lanes hold 3
 // to 10 contacts, Coulomb friction rows on the legs' joints taken into the
-// solve beside them, 24 limit rows; 50 counted steps. The first step runs on one thread, so
-// that on two threads the second one steps its first block while counted.
+// solve beside them, 24 limit rows; 50 counted steps. The first step runs
+// on one thread, so that on two threads the second one steps its first
+// block while counted.
 // Before that, another simulator of the same scene steps uncounted on as
 // many threads: TBB keeps its task objects in per-thread pools that grow
 // to their working size in the first parallel loops, and where its
