@@ -190,6 +190,21 @@ void ltdl_lower_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scal
   ltdl_lower_solve_many<1, L>(km, H, x, 0);
 }
 
+// ltdl_lower_solve on `count` right-hand sides x + c stride, four at a
+// time (ltdl_lower_solve_many: the same bits as one solve each).
+template <class L>
+void ltdl_lower_solve_columns(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H,
+                              lane::scalar_t<L>* x, int count, int stride) {
+  int c = 0;
+  for (; c + 4 <= count; c += 4) ltdl_lower_solve_many<4, L>(km, H, x + c * stride, stride);
+  switch (count - c) {
+    case 3: ltdl_lower_solve_many<3, L>(km, H, x + c * stride, stride); break;
+    case 2: ltdl_lower_solve_many<2, L>(km, H, x + c * stride, stride); break;
+    case 1: ltdl_lower_solve_many<1, L>(km, H, x + c * stride, stride); break;
+    default: break;
+  }
+}
+
 // Solves L^T y = b in place on x (nv per lane), with H from ltdl_factor:
 // the first pass of ltdl_solve, leaves to root. With `dofs` (n of them,
 // ascending, closed under dof_parent), b is zero outside them and the pass
@@ -226,16 +241,26 @@ void ltdl_transpose_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::
   ltdl_transpose_solve_many<1, L>(km, H, x, 0, dofs, n);
 }
 
-// Solves (L^T D L) x = b in place on x (nv per lane), with H from ltdl_factor.
-// With `dofs` (as for ltdl_transpose_solve: b zero outside them), the
-// first pass touches only them, with the same bits.
+// Solves D y = b in place on x (nv per lane), with H from ltdl_factor: the
+// middle pass of ltdl_solve. With `dofs` (n of them), b is zero outside
+// them and only they are divided (0 / D_kk is 0: the same bits).
 template <class L>
-void ltdl_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x,
-                const int* dofs = nullptr, int n = -1) {
+void ltdl_diagonal_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x,
+                         const int* dofs = nullptr, int n = -1) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
-  ltdl_transpose_solve<L>(km, H, x, dofs, n);
-  for (int k = 0; k < nv; ++k) lane::store(lane::load<L>(x + k * W) / lane::load<L>(H + (k * nv + k) * W), x + k * W);
+  if (!dofs) n = nv;
+  for (int i = 0; i < n; ++i) {
+    const int k = dofs ? dofs[i] : i;
+    lane::store(lane::load<L>(x + k * W) / lane::load<L>(H + (k * nv + k) * W), x + k * W);
+  }
+}
+
+// Solves (L^T D L) x = b in place on x (nv per lane), with H from ltdl_factor.
+template <class L>
+void ltdl_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H, lane::scalar_t<L>* x) {
+  ltdl_transpose_solve<L>(km, H, x);
+  ltdl_diagonal_solve<L>(km, H, x);
   ltdl_lower_solve<L>(km, H, x);
 }
 

@@ -173,8 +173,9 @@ struct JointRowColumns {
 // The columns Mt^-1 e_d of the distinct row DOFs d, one solve with the
 // factored Mt (factor_step_mass_matrix) each: what add_row_impulses
 // applies, and what joint_row_delassus reads D off. e_d is zero off d's
-// path to the root, so the solve's first pass (L^-T) runs on that path
-// only (a leg's knee: 9 of anymal_b's 18 DOFs).
+// path to the root, so the solve's first two passes (L^-T, D^-1) run on
+// that path only (a leg's knee: 9 of anymal_b's 18 DOFs); its last (L^-1)
+// takes four columns at a time, each factor entry loaded once for them.
 template <class L>
 void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const JointRowColumns& columns,
                        const Workspace<L>& ws, JointRowScratch<L>& s) {
@@ -185,9 +186,13 @@ void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const JointRowC
   for (int c = 0; c < columns.size(); ++c) {
     T* column = reinterpret_cast<T*>(&s.columns[c * nv]);
     for (int r = 0; r < nv; ++r) lane::store(L(T(r == columns.dof[c] ? 1 : 0)), column + r * W);
-    const int first = columns.path_begin[c];
-    ltdl_solve<L>(km, H, column, columns.path.data() + first, columns.path_begin[c + 1] - first);
+    const int* path = columns.path.data() + columns.path_begin[c];
+    const int n = columns.path_begin[c + 1] - columns.path_begin[c];
+    ltdl_transpose_solve<L>(km, H, column, path, n);
+    ltdl_diagonal_solve<L>(km, H, column, path, n);
   }
+  const int stride = nv * static_cast<int>(W);
+  ltdl_lower_solve_columns<L>(km, H, reinterpret_cast<T*>(s.columns.data()), columns.size(), stride);
 }
 
 // Entry (r, c) of the joint rows' block of the Delassus matrix,

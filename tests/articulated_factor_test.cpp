@@ -6,6 +6,7 @@
 // the scalar reference path bit for bit.
 #include "kernels/aba.hpp"
 #include "kernels/crba.hpp"
+#include "kernels/joint_rows.hpp"
 #include "layout/batch_state.hpp"
 #include "test_support.hpp"
 
@@ -168,7 +169,38 @@ void expect_lanes_match_scalar(const Model& model) {
   }
 }
 
+// The joint rows' columns Mt^-1 e_d (joint_row_columns: the first pass on
+// d's root path only, the last on four columns at a time) equal, bit for
+// bit, one whole ltdl_solve of e_d each, for every DOF of the model.
+template <class L>
+void expect_joint_row_columns_match_solves(const Model& model) {
+  using T = lane::scalar_t<L>;
+  constexpr int W = Factors<L>::W;
+  const KernelModel<T> km(model);
+  std::mt19937 rng(5);
+  const Factors<L> f(model, Inputs::draw(model, W, rng, T()), 0);
+  Workspace<L> ws(km);
+  ws.matrix = f.from_aba;
+  JointRowColumns columns;
+  for (int k = model.nv - 1; k >= 0; --k) columns.column_of(km, k);  // not in DOF order
+  JointRowScratch<L> s(0, columns.size(), model.nv);
+  joint_row_columns<L>(km, columns, ws, s);
+  std::vector<L> x(model.nv);
+  T* xs = reinterpret_cast<T*>(x.data());
+  for (int c = 0; c < columns.size(); ++c) {
+    for (int r = 0; r < model.nv; ++r) x[r] = L(T(r == columns.dof[c] ? 1 : 0));
+    ltdl_solve<L>(km, reinterpret_cast<const T*>(f.from_aba.data()), xs);
+    const T* column = reinterpret_cast<const T*>(&s.columns[c * model.nv]);
+    ASSERT_EQ(std::memcmp(column, xs, sizeof(T) * W * model.nv), 0) << "column of DOF " << columns.dof[c];
+  }
+}
+
 class ArticulatedFactor : public test::ModelCaseTest {};
+
+TEST_P(ArticulatedFactor, JointRowColumnsMatchOneSolveEach) {
+  expect_joint_row_columns_match_solves<lane::simd<float>>(model_);
+  expect_joint_row_columns_match_solves<lane::simd<double>>(model_);
+}
 
 TEST_P(ArticulatedFactor, SolvesLikeTheCrbaFactorsInDouble) { expect_factors_solve<lane::simd<double>>(model_); }
 TEST_P(ArticulatedFactor, SolvesLikeTheCrbaFactorsInFloat) { expect_factors_solve<lane::simd<float>>(model_); }
