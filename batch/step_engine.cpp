@@ -36,8 +36,8 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       contacts(contact.capacity, contact.rows_per_contact, km.nv, km.nbody, candidates), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv), needed(joint_rows + contact.capacity * contact.rows_per_contact),
-      needed_source(needed.m), need(joint_rows), violated(joint_rows), joint_impulse(joint_rows),
-      held_displacement(joint_rows), held_coupling(static_cast<std::size_t>(columns) * needed.m),
+      needed_source(needed.m), need(joint_rows), violated(joint_rows), held_displacement(joint_rows),
+      column_built(columns), new_columns(columns), held_coupling(static_cast<std::size_t>(columns) * needed.m),
       dof_velocity(columns), momentum_target(km.nbody), articulation_mass(km.nbody) {}
 
 template <class L>
@@ -590,7 +590,8 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
   if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, contacts, contact_rows);
-  s.joint_columns = s.contact_columns = false;  // built by the first round that needs them
+  std::fill(s.column_built.begin(), s.column_built.end(), 0);  // built by the first round that needs them
+  s.contact_columns = false;
   s.contact_rows_spilled = false;
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
   // the joint rows a lane needs at the free velocity (solve_blocks)
@@ -601,15 +602,21 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   }
 }
 
-// The columns of Mt^-1 that D's joint rows and their coupling with the
-// contacts are read off (build_round): built the first time a solve needs
-// them.
+// The columns of Mt^-1 that the round's joint rows read D off
+// (build_round) and apply their impulses through, those not built yet this
+// step; and the contact rows' (their coupling with the joint rows).
 template <class L>
 void StepEngine<L>::build_joint_columns(Scratch& s) const {
-  if (s.joint_columns) return;
-  joint_row_columns<L>(km_, columns_, s.ws, s.rows);
+  int n = 0;
+  for (int a = 0; a < s.needed_joint_rows; ++a) {
+    const int c = row_specs_[s.needed_source[a]].column;
+    if (!s.column_built[c]) {
+      s.column_built[c] = 1;
+      s.new_columns[n++] = c;
+    }
+  }
+  joint_row_columns<L>(km_, columns_, s.ws, s.rows, s.new_columns.data(), n);
   build_contact_columns(s);
-  s.joint_columns = true;
 }
 
 // The contact rows' columns Mt^-1 J^T (contact_columns).
@@ -658,11 +665,13 @@ void StepEngine<L>::finish_rows(int block, T h, Scratch& s) {
   if (options_.solver != SolverType::TGS) {
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k] + contacts.dv[k]);
   } else {
-    if (s.joint_columns) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda, s.u1.data());  // else all zero
+    const int* joint_rows = s.needed_source.data();
+    const int nj = s.needed_joint_rows;
+    add_row_impulses<L>(km_, row_specs_, rs, joint_rows, nj, s.needed.lambda.data(), s.u1.data());
     if (contact_rows) add_contact_impulses<L>(km_, H, rows.lambda.data() + mj, contacts, s.u1.data());
     for (int k = 0; k < nv; ++k) s.u1[k] = lane::select(rest, s.u_free[k], s.u1[k]);
     for (int k = 0; k < nv; ++k) s.displacement[k] = L(h) * s.u_free[k];
-    if (s.joint_columns) add_row_impulses<L>(km_, row_specs_, rs, rows.lambda_sum, s.displacement.data());
+    add_row_impulses<L>(km_, row_specs_, rs, joint_rows, nj, s.needed.lambda_sum.data(), s.displacement.data());
     if (contact_rows) add_contact_impulses<L>(km_, H, rows.lambda_sum.data() + mj, contacts, s.displacement.data());
     for (int k = 0; k < nv; ++k) s.displacement[k] = lane::select(rest, L(h) * s.u_free[k], s.displacement[k]);
   }
@@ -824,13 +833,10 @@ void StepEngine<L>::build_round(Scratch& s) const {
 // contacts.dv = Mt^-1 J^T lambda of s.needed's impulses.
 template <class L>
 void StepEngine<L>::needed_velocity_change(Scratch& s) const {
-  const int mj = static_cast<int>(row_specs_.size()), nj = s.needed_joint_rows;
+  const int nj = s.needed_joint_rows;
   const RowBlock<L>& sub = s.needed;
   contact_velocity_change<L>(km_, factors(s), sub.lambda.data() + nj, s.contacts);
-  if (nj == 0) return;
-  for (int r = 0; r < mj; ++r) s.joint_impulse[r] = L(T(0));
-  for (int a = 0; a < nj; ++a) s.joint_impulse[s.needed_source[a]] = sub.lambda[a];
-  add_row_impulses<L>(km_, row_specs_, s.rows, s.joint_impulse, s.contacts.dv.data());
+  add_row_impulses<L>(km_, row_specs_, s.rows, s.needed_source.data(), nj, sub.lambda.data(), s.contacts.dv.data());
 }
 
 // One round of `count` blocks (1 or 2) side by side: PGS, or TGS with each

@@ -109,13 +109,17 @@ class StepEngine final : public Simulator::Engine {
     // needs, then the contact rows, which prepare_rows builds here), each
     // one's row in `rows` (the contact rows' once spill_contact_rows has
     // put them there), and per joint row the lanes that need it, those
-    // where it left its band held at zero, its impulse and (TGS) its
-    // displacement held at zero
+    // where it left its band held at zero, and (TGS) its displacement held
+    // at zero
     RowBlock<L> needed;
     std::vector<int> needed_source;
     int needed_joint_rows = 0;  // the joint rows in `needed`, before its contact rows
     std::vector<lane::mask_t<L>> need, violated;
-    std::vector<L> joint_impulse, held_displacement;
+    std::vector<L> held_displacement;
+    // the columns of Mt^-1 built this step, per distinct row DOF
+    // (build_joint_columns), and the list of those a round adds
+    std::vector<unsigned char> column_built;
+    std::vector<int> new_columns;
     // TGS's check of the held joint rows (check_held_rows): per distinct
     // row DOF, its velocity's coefficient of each row of the round, and
     // that velocity at a substep
@@ -129,7 +133,6 @@ class StepEngine final : public Simulator::Engine {
     L input_fault;
     bool solving = false;      // the block has rows to solve this step
     bool joint_rows_needed = false;  // some lane needs a joint row at the free velocity
-    bool joint_columns = false;  // the joint rows' columns of Mt^-1 are built (build_joint_columns)
     bool contact_columns = false;  // the contact rows' Mt^-1 J^T are built (build_contact_columns)
     bool contact_rows_spilled = false;  // the contact rows are in `rows` too (spill_contact_rows)
     Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);

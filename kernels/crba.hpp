@@ -162,27 +162,36 @@ void ltdl_factor_from_aba(const KernelModel<lane::scalar_t<L>>& km, const Worksp
   }
 }
 
-// Solves L x = z in place on R right-hand sides x + r stride (nv per lane
-// each), with H from ltdl_factor: the last pass of ltdl_solve, root to
-// leaves. Each factor entry is loaded once for the R of them; each gets the
-// bits of a solve of its own.
+// Solves L x = z in place on R right-hand sides x[0], ..., x[R - 1] (nv
+// per lane each), with H from ltdl_factor: the last pass of ltdl_solve,
+// root to leaves. Each factor entry is loaded once for the R of them; each
+// gets the bits of a solve of its own.
 template <int R, class L>
 void ltdl_lower_solve_many(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H,
-                           lane::scalar_t<L>* x, int stride) {
+                           lane::scalar_t<L>* const (&x)[R]) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
   const int* begin = km.dof_ancestor_begin.data();
   const int* ancestors = km.dof_ancestors.data();
   for (int k = 0; k < nv; ++k) {
     L xk[R];
-    for (int r = 0; r < R; ++r) xk[r] = lane::load<L>(x + r * stride + k * W);
+    for (int r = 0; r < R; ++r) xk[r] = lane::load<L>(x[r] + k * W);
     for (int t = begin[k]; t < begin[k + 1]; ++t) {
       const int i = ancestors[t];
       const L Lki = lane::load<L>(H + (k * nv + i) * W);
-      for (int r = 0; r < R; ++r) xk[r] = lane::fnmadd(Lki, lane::load<L>(x + r * stride + i * W), xk[r]);
+      for (int r = 0; r < R; ++r) xk[r] = lane::fnmadd(Lki, lane::load<L>(x[r] + i * W), xk[r]);
     }
-    for (int r = 0; r < R; ++r) lane::store(xk[r], x + r * stride + k * W);
+    for (int r = 0; r < R; ++r) lane::store(xk[r], x[r] + k * W);
   }
+}
+
+// The same on R right-hand sides `stride` scalars apart from x.
+template <int R, class L>
+void ltdl_lower_solve_many(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H,
+                           lane::scalar_t<L>* x, int stride) {
+  lane::scalar_t<L>* columns[R];
+  for (int r = 0; r < R; ++r) columns[r] = x + r * stride;
+  ltdl_lower_solve_many<R, L>(km, H, columns);
 }
 
 template <class L>
@@ -190,18 +199,21 @@ void ltdl_lower_solve(const KernelModel<lane::scalar_t<L>>& km, const lane::scal
   ltdl_lower_solve_many<1, L>(km, H, x, 0);
 }
 
-// ltdl_lower_solve on `count` right-hand sides x + c stride, four at a
-// time (ltdl_lower_solve_many: the same bits as one solve each).
+// ltdl_lower_solve on the right-hand sides x + which[i] stride (i < count),
+// four at a time (ltdl_lower_solve_many: the same bits as one solve each).
 template <class L>
 void ltdl_lower_solve_columns(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* H,
-                              lane::scalar_t<L>* x, int count, int stride) {
-  int c = 0;
-  for (; c + 4 <= count; c += 4) ltdl_lower_solve_many<4, L>(km, H, x + c * stride, stride);
-  switch (count - c) {
-    case 3: ltdl_lower_solve_many<3, L>(km, H, x + c * stride, stride); break;
-    case 2: ltdl_lower_solve_many<2, L>(km, H, x + c * stride, stride); break;
-    case 1: ltdl_lower_solve_many<1, L>(km, H, x + c * stride, stride); break;
-    default: break;
+                              lane::scalar_t<L>* x, int stride, const int* which, int count) {
+  using T = lane::scalar_t<L>;
+  int i = 0;
+  for (; i + 4 <= count; i += 4) {
+    T* const four[4] = {x + which[i] * stride, x + which[i + 1] * stride, x + which[i + 2] * stride,
+                        x + which[i + 3] * stride};
+    ltdl_lower_solve_many<4, L>(km, H, four);
+  }
+  for (; i < count; ++i) {
+    T* const one[1] = {x + which[i] * stride};
+    ltdl_lower_solve_many<1, L>(km, H, one);
   }
 }
 

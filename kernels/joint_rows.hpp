@@ -170,20 +170,22 @@ struct JointRowColumns {
   int size() const { return static_cast<int>(dof.size()); }
 };
 
-// The columns Mt^-1 e_d of the distinct row DOFs d, one solve with the
-// factored Mt (factor_step_mass_matrix) each: what add_row_impulses
-// applies, and what joint_row_delassus reads D off. e_d is zero off d's
-// path to the root, so the solve's first two passes (L^-T, D^-1) run on
-// that path only (a leg's knee: 9 of anymal_b's 18 DOFs); its last (L^-1)
-// takes four columns at a time, each factor entry loaded once for them.
+// The columns Mt^-1 e_d of the distinct row DOFs d numbered which[0, count),
+// one solve with the factored Mt (factor_step_mass_matrix) each: what
+// add_row_impulses applies, and what joint_row_delassus reads D off. e_d is
+// zero off d's path to the root, so the solve's first two passes (L^-T,
+// D^-1) run on that path only (a leg's knee: 9 of anymal_b's 18 DOFs); its
+// last (L^-1) takes four columns at a time, each factor entry loaded once
+// for them.
 template <class L>
 void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const JointRowColumns& columns,
-                       const Workspace<L>& ws, JointRowScratch<L>& s) {
+                       const Workspace<L>& ws, JointRowScratch<L>& s, const int* which, int count) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
   const T* H = reinterpret_cast<const T*>(ws.matrix.data());
-  for (int c = 0; c < columns.size(); ++c) {
+  for (int i = 0; i < count; ++i) {
+    const int c = which[i];
     T* column = reinterpret_cast<T*>(&s.columns[c * nv]);
     for (int r = 0; r < nv; ++r) lane::store(L(T(r == columns.dof[c] ? 1 : 0)), column + r * W);
     const int* path = columns.path.data() + columns.path_begin[c];
@@ -192,7 +194,7 @@ void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const JointRowC
     ltdl_diagonal_solve<L>(km, H, column, path, n);
   }
   const int stride = nv * static_cast<int>(W);
-  ltdl_lower_solve_columns<L>(km, H, reinterpret_cast<T*>(s.columns.data()), columns.size(), stride);
+  ltdl_lower_solve_columns<L>(km, H, reinterpret_cast<T*>(s.columns.data()), stride, which, count);
 }
 
 // Entry (r, c) of the joint rows' block of the Delassus matrix,
@@ -206,14 +208,17 @@ inline L joint_row_delassus(const std::vector<JointRowSpec<lane::scalar_t<L>>>& 
   return s.sigma[r] * s.sigma[c] * s.columns[specs[c].column * nv + specs[r].dof];
 }
 
-// out[k] = base[k] + sum_r sigma_r x_r (Mt^-1 e_{dof_r})[k]: the velocity
-// change of impulses x (lambda), or the displacement of lambda_sum.
+// out[k] += sum_i sigma_r x_i (Mt^-1 e_{dof_r})[k] over the rows
+// r = rows[i], i < count, in that order: the velocity change of impulses x
+// (lambda), or the displacement of lambda_sum. Their columns must be built
+// (joint_row_columns).
 template <class L>
 void add_row_impulses(const KernelModel<lane::scalar_t<L>>& km, const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
-                      const JointRowScratch<L>& s, const std::vector<L>& x, L* out) {
+                      const JointRowScratch<L>& s, const int* rows, int count, const L* x, L* out) {
   const int nv = km.nv;
-  for (std::size_t r = 0; r < specs.size(); ++r) {
-    const L scaled = s.sigma[r] * x[r];
+  for (int i = 0; i < count; ++i) {
+    const int r = rows[i];
+    const L scaled = s.sigma[r] * x[i];
     const L* column = &s.columns[specs[r].column * nv];
     for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(scaled, column[k], out[k]);
   }
