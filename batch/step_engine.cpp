@@ -553,8 +553,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   // block at rest builds none); with them, built and tested once, each
   // row's slack at the free velocity kept in s.need until `rest` is known.
   lane::mask_t<L> rest(true);
-  if (mc == 0) rest = joint_rows_at_rest<L>(row_specs_, q, s.u1.data(), friction, h, erp);
-  if (mc > 0 || !lane::all<L>(rest)) {
+  if (mc > 0 || !joint_rows_all_at_rest<L>(row_specs_, q, s.u1.data(), friction, h, erp)) {
     build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
     for (int r = 0; r < mj; ++r) {
       s.need[r] = row_slack(rows, r, rows.v_free[r]);

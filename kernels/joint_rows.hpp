@@ -80,19 +80,21 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
   return row;
 }
 
-// Per lane: true where no joint row needs an impulse. The same test as
-// rows_at_rest on the built rows, without building them: a block where it
-// holds in every lane skips the rows altogether.
+// True where no joint row needs an impulse in any lane of the block: the
+// same test as rows_at_rest on the built rows, without building them (a
+// block at rest then skips the rows altogether). It stops at the first row
+// some lane needs: a DOF with joint friction that moves at all needs its
+// friction row, so a block of such a robot stops at once.
 template <class L>
-lane::mask_t<L> joint_rows_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
-                                   const lane::scalar_t<L>* q, const L* v_free, const lane::scalar_t<L>* friction,
-                                   lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
-  lane::mask_t<L> rest(true);
+bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const lane::scalar_t<L>* q,
+                            const L* v_free, const lane::scalar_t<L>* friction, lane::scalar_t<L> dt,
+                            lane::scalar_t<L> erp) {
   for (const JointRowSpec<lane::scalar_t<L>>& spec : specs) {
     const JointRow<L> row = joint_row<L>(spec, q, v_free, friction, dt, erp);
-    rest = rest && row_at_rest(row.v_free, row.target, row.target_hi, row.lo, row.hi, row.error, row.positional);
+    if (!lane::all<L>(row_at_rest(row.v_free, row.target, row.target_hi, row.lo, row.hi, row.error, row.positional)))
+      return false;
   }
-  return rest;
+  return true;
 }
 
 // Joint row r's velocity (built by build_joint_rows) once other rows'
