@@ -813,18 +813,19 @@ void StepEngine<L>::build_round(Scratch& s) const {
   const lane::mask_t<L> all(true);
   const int nv = km_.nv;
   const int* source = s.needed_source.data();
+  L* D = sub.D.data();
   for (int a = 0; a < n; ++a) {
     const int r = source[a];
     copy_row(rows, r, sub, a, nj - mj, a < nj ? s.need[r] : all);  // contact friction: its normal
-    L* D = &sub.D[a * n];
     if (a < nj) {
-      for (int b = 0; b < nj; ++b) D[b] = joint_row_delassus<L>(row_specs_, s.rows, nv, r, source[b]);
+      for (int b = 0; b < nj; ++b) D[a * n + b] = joint_row_delassus<L>(row_specs_, s.rows, nv, r, source[b]);
+      // the coupling with the contacts, into both of its entries
+      const L sigma = s.rows.sigma[r];
+      const int dof = row_specs_[r].dof;
       for (int b = nj; b < n; ++b)
-        D[b] = contact_joint_delassus<L>(s.rows.sigma[r], row_specs_[r].dof, s.contacts, source[b] - mj);
+        D[a * n + b] = D[b * n + a] = contact_joint_delassus<L>(sigma, dof, s.contacts, source[b] - mj);
     } else {
-      for (int b = 0; b < nj; ++b)
-        D[b] = contact_joint_delassus<L>(s.rows.sigma[source[b]], row_specs_[source[b]].dof, s.contacts, r - mj);
-      for (int b = nj; b < n; ++b) D[b] = rows.D[r * m + source[b]];
+      for (int b = nj; b < n; ++b) D[a * n + b] = rows.D[r * m + source[b]];
     }
   }
 }
