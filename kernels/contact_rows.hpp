@@ -487,6 +487,7 @@ void contact_velocity_change(const KernelModel<lane::scalar_t<L>>& km, const lan
   const int nv = s.nv, k = s.k;
   L* dv = s.dv.data();
   for (int j = 0; j < nv; ++j) dv[j] = L(T(0));
+  if (s.slots == 0) return;  // L^-1 of zeros: zeros
   // per DOF, the slot's rows summed in registers in row order (the same
   // chain of multiply-adds as row after row, one load and store per DOF)
   for (int c = 0; c < s.slots; ++c) {
