@@ -83,8 +83,8 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
 // True where no joint row needs an impulse in any lane of the block: the
 // same test as rows_at_rest on the built rows, without building them (a
 // block at rest then skips the rows altogether). It stops at the first row
-// some lane needs: a DOF with joint friction that moves at all needs its
-// friction row, so a block of such a robot stops at once.
+// some lane needs (a friction row whenever its DOF's free velocity is not
+// zero).
 template <class L>
 bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const lane::scalar_t<L>* q,
                             const L* v_free, const lane::scalar_t<L>* friction, lane::scalar_t<L> dt,

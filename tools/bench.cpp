@@ -243,8 +243,9 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
     sim.set_profiling(false);
   }
   // the root's z is q[2] of a Free root only (a fixed base may have nq < 3)
+  const bool free_root = step_scene::free_root(model);
   for (int c = 0; c < sim.copies(); ++c) {
-    if (step_scene::free_root(model)) result.mean_height += sim.q(c)[2] / sim.copies();
+    if (free_root) result.mean_height += sim.q(c)[2] / sim.copies();
     for (const Contact& contact : sim.contacts(c)) result.mean_contacts += contact.force.norm() > 0 ? 1.0 / sim.copies() : 0.0;
   }
   return result;
