@@ -3,6 +3,8 @@
 #include "batch/counter_rng.hpp"
 #include "tools/cli.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -41,6 +43,7 @@ Policy::Policy(PolicyKind kind, const VecEnv& env, std::uint64_t seed) : kind_(k
   const int n = env.action_size();
   hold_ = Eigen::VectorXd::Zero(n);
   amplitude_.resize(n);
+  wave_.resize(n);
   effort_.resize(n);
   q_index_.assign(n, -1);
   for (int j = 0; j < n; ++j) {
@@ -64,15 +67,17 @@ void Policy::act(const VecEnv& env, std::int64_t step, RowMatrix& actions) const
   actions.resize(env.copies(), n);
   const bool torque_hold = env.options().action_mode == ActionMode::Torque && kind_ != PolicyKind::Zero;
   const double t = static_cast<double>(step) * env.options().step.dt * env.options().control_steps;
+  // the wave is the same for every copy: one sine per column and step
+  for (int j = 0; j < n; ++j)
+    wave_[j] = kind_ == PolicyKind::Sine ? amplitude_[j] * std::sin(2 * M_PI * kSineHz * t + 0.5 * j) : 0.0;
   const Observations& obs = env.observations();
-  for (int c = 0; c < env.copies(); ++c)
+  auto act_copy = [&](int c) {
     for (int j = 0; j < n; ++j) {
-      double a = 0;
       if (kind_ == PolicyKind::Zero) {
         actions(c, j) = 0;
         continue;
       }
-      if (kind_ == PolicyKind::Sine) a = amplitude_[j] * std::sin(2 * M_PI * kSineHz * t + 0.5 * j);
+      double a = wave_[j];
       if (kind_ == PolicyKind::Random) {
         const PhiloxCounter bits =
             philox4x32({static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(step),
@@ -90,6 +95,11 @@ void Policy::act(const VecEnv& env, std::int64_t step, RowMatrix& actions) const
       const double pd = kHoldStiffness * error - kHoldDamping * obs.qd(c, dof);
       actions(c, j) = std::clamp(pd + a, -effort_[j], effort_[j]);
     }
+  };
+  // every copy's row on its own: the same bits on any thread count
+  tbb::parallel_for(tbb::blocked_range<int>(0, env.copies(), 512), [&](const tbb::blocked_range<int>& copies) {
+    for (int c = copies.begin(); c != copies.end(); ++c) act_copy(c);
+  });
 }
 
 }  // namespace lockstep::cli

@@ -38,6 +38,7 @@ class Policy {
   Eigen::VectorXd amplitude_;  // (actions)
   Eigen::VectorXd effort_;     // (actions) the torque clamp
   std::vector<int> q_index_;   // (actions) the column's entry in q (1-DOF joints), -1 otherwise
+  mutable Eigen::VectorXd wave_;  // (actions) scratch of act(): the sine policy's wave at this step
 };
 
 }  // namespace lockstep::cli
