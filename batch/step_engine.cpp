@@ -552,14 +552,9 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   // Without contacts the joint rows are tested before they are built (a
   // block at rest builds none); with them, built and tested once, each
   // row's slack at the free velocity kept in s.need until `rest` is known.
-  lane::mask_t<L> rest(true);
-  if (mc > 0 || !joint_rows_all_at_rest<L>(row_specs_, q, s.u1.data(), friction, h, erp)) {
-    build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs);
-    for (int r = 0; r < mj; ++r) {
-      s.need[r] = row_slack(rows, r, rows.v_free[r]);
-      rest = rest && s.need[r];
-    }
-  }
+  lane::mask_t<L> rest(true), joint_rows_slack(true);
+  if (mc > 0 || !joint_rows_all_at_rest<L>(row_specs_, q, s.u1.data(), friction, h, erp))
+    rest = joint_rows_slack = build_joint_rows<L>(row_specs_, q, s.u1.data(), friction, h, erp, rs, s.need);
   // the contact rows where a round of them alone solves them, s.needed
   // (spill_contact_rows moves them behind the joint rows if a round needs
   // joint rows too)
@@ -594,11 +589,8 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   s.contact_rows_spilled = false;
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
   // the joint rows a lane needs at the free velocity (solve_blocks)
-  s.joint_rows_needed = false;
-  for (int r = 0; r < mj; ++r) {
-    s.need[r] = !rest && !s.need[r];  // s.need held the row's slack
-    s.joint_rows_needed = s.joint_rows_needed || lane::any<L>(s.need[r]);
-  }
+  for (int r = 0; r < mj; ++r) s.need[r] = !rest && !s.need[r];  // s.need held the row's slack
+  s.joint_rows_needed = lane::any<L>(!rest && !joint_rows_slack);
 }
 
 // The columns of Mt^-1 that the round's joint rows read D off

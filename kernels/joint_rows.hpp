@@ -114,14 +114,21 @@ lane::mask_t<L> joint_row_slack(const std::vector<JointRowSpec<lane::scalar_t<L>
   return row_slack(s.rows, r, joint_row_velocity(specs, s, r, dv));
 }
 
-// Stores the rows of one block for the solver.
+// Stores the rows of one block for the solver, and each row's slack at the
+// free velocity (row_slack's test, on the row as it is built) in slack[r].
+// Returns their conjunction: true in a lane where no joint row needs an
+// impulse.
 template <class L>
-void build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const lane::scalar_t<L>* q,
-                      const L* v_free, const lane::scalar_t<L>* friction, lane::scalar_t<L> dt, lane::scalar_t<L> erp,
-                      JointRowScratch<L>& s) {
+lane::mask_t<L> build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
+                                 const lane::scalar_t<L>* q, const L* v_free, const lane::scalar_t<L>* friction,
+                                 lane::scalar_t<L> dt, lane::scalar_t<L> erp, JointRowScratch<L>& s,
+                                 std::vector<lane::mask_t<L>>& slack) {
   RowBlock<L>& rows = s.rows;
+  lane::mask_t<L> all_slack(true);
   for (std::size_t r = 0; r < specs.size(); ++r) {
     const JointRow<L> row = joint_row<L>(specs[r], q, v_free, friction, dt, erp);
+    slack[r] = row_at_rest(row.v_free, row.target, row.target_hi, row.lo, row.hi, row.error, row.positional);
+    all_slack = all_slack && slack[r];
     s.sigma[r] = row.sigma;
     rows.error[r] = row.error;
     rows.target[r] = row.target;
@@ -132,6 +139,7 @@ void build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
     rows.positional[r] = row.positional;
     rows.rate[r] = L(erp / dt);
   }
+  return all_slack;
 }
 
 // Mt = CRBA + the implicit diagonal (armature and w), factored as L^T D L
