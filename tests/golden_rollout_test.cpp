@@ -49,7 +49,7 @@ std::uint64_t rollout_hash(Precision precision, SolverType solver, int threads) 
   scene.env.seed = 7;
   VecEnv env(scene.model, 48, scene.env);
   env.reset();
-  const cli::Policy policy(cli::PolicyKind::Random, env, scene.env.seed);
+  cli::Policy policy(cli::PolicyKind::Random, env, scene.env.seed);
   RowMatrix actions;
   Fnv1a hash;
   for (int t = 0; t < 90; ++t) {

@@ -62,7 +62,7 @@ Seen record(const Scene& scene, int envs, int steps, const std::string& file, in
   VecEnv env(scene.model, envs, scene.env);
   env.reset();
   RolloutRecorder recorder(env, file, {scene_to_json(scene), scene.model_path, "random", {}});
-  const cli::Policy policy(cli::PolicyKind::Random, env, scene.env.seed);
+  cli::Policy policy(cli::PolicyKind::Random, env, scene.env.seed);
   Seen seen;
   RowMatrix actions;
   for (int t = 0; t < steps; ++t) {

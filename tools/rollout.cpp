@@ -170,7 +170,7 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   RolloutInfo info{scene_to_json(scene), scene.model_path, policy_name(config.policy), {}};
   info.extra.push_back({"threads", static_cast<std::int64_t>(threads)});
   RolloutRecorder recorder(env, config.out, info, config.file);
-  const Policy policy(config.policy, env, scene.env.seed);
+  Policy policy(config.policy, env, scene.env.seed);
 
   RowMatrix actions;
   Progress progress(config.steps, config.envs);

@@ -62,7 +62,7 @@ Policy::Policy(PolicyKind kind, const VecEnv& env, std::uint64_t seed) : kind_(k
   }
 }
 
-void Policy::act(const VecEnv& env, std::int64_t step, RowMatrix& actions) const {
+void Policy::act(const VecEnv& env, std::int64_t step, RowMatrix& actions) {
   const int n = env.action_size();
   actions.resize(env.copies(), n);
   const bool torque_hold = env.options().action_mode == ActionMode::Torque && kind_ != PolicyKind::Zero;

@@ -29,7 +29,7 @@ class Policy {
  public:
   Policy(PolicyKind kind, const VecEnv& env, std::uint64_t seed);
   // The actions of env step `step` (N x action_size) from the observations.
-  void act(const VecEnv& env, std::int64_t step, RowMatrix& actions) const;
+  void act(const VecEnv& env, std::int64_t step, RowMatrix& actions);
 
  private:
   PolicyKind kind_;
@@ -38,7 +38,7 @@ class Policy {
   Eigen::VectorXd amplitude_;  // (actions)
   Eigen::VectorXd effort_;     // (actions) the torque clamp
   std::vector<int> q_index_;   // (actions) the column's entry in q (1-DOF joints), -1 otherwise
-  mutable Eigen::VectorXd wave_;  // (actions) scratch of act(): the sine policy's wave at this step
+  Eigen::VectorXd wave_;       // (actions) scratch of act(): the sine policy's wave at this step
 };
 
 }  // namespace lockstep::cli
