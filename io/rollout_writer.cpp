@@ -10,6 +10,7 @@
 // over a partial block once flush_seconds have passed (a slow producer).
 // After a failed write nothing more reaches the file: it keeps what its last
 // successful flush wrote.
+#include "io/rollout_chunks.hpp"
 #include "io/rollout_file.hpp"
 #include "io/rollout_hdf5.hpp"
 
@@ -140,6 +141,9 @@ struct StepSlot {
   std::vector<hsize_t> extent;  // [T, shape...], T = steps written
   std::vector<hsize_t> start;   // where the next block goes: [T, 0...]
   std::vector<hsize_t> count;   // the block: [steps, shape...]
+  hsize_t chunk_steps = 0;      // steps per chunk
+  std::size_t element_bytes = 0;
+  std::size_t frame_bytes = 0;  // one step
 };
 
 // Chunks of [chunk_steps, shape...], unlimited along T, optional shuffle + gzip.
@@ -149,6 +153,9 @@ StepSlot create_step_dataset(hid_t file, const StepDataset& dataset, std::size_t
   StepSlot slot;
   slot.name = dataset.name;
   slot.memory_type = memory_type(dataset.type);
+  slot.chunk_steps = chunk_steps;
+  slot.element_bytes = element_size(dataset.type);
+  slot.frame_bytes = element_count(dataset.shape) * slot.element_bytes;
   slot.extent = to_hsize(dataset.shape);
   slot.extent.insert(slot.extent.begin(), 0);
   slot.start.assign(slot.extent.size(), 0);
@@ -218,6 +225,7 @@ struct RolloutWriter::Impl {
   const std::vector<StepDataset> definitions;
   std::vector<std::size_t> frame_bytes;
   int buffer_steps = 0;
+  int compression_level = 0;  // of the step datasets, 0: raw
   Clock::duration flush_interval{};
 
   // HDF5 objects: the constructor, then the writer thread, then close().
@@ -234,6 +242,8 @@ struct RolloutWriter::Impl {
 
   // The writer thread's side.
   std::int64_t written = 0;
+  std::vector<rollout_chunks::Chunk> chunks;  // a block's whole chunks, filtered here (write_block)
+  std::vector<int> first_chunk;               // (slots) a dataset's first in `chunks`, -1: through H5Dwrite
   Clock::time_point last_flush;
   std::atomic<std::int64_t> flushed{0};
 
@@ -257,6 +267,7 @@ struct RolloutWriter::Impl {
                                         ? static_cast<std::size_t>(options.chunk_steps)
                                         : std::max<std::size_t>(1, kAutomaticChunkBytes / largest_frame);
     buffer_steps = options.buffer_steps > 0 ? options.buffer_steps : static_cast<int>(chunk_steps);
+    compression_level = options.compression;
     flush_interval = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options.flush_seconds));
     for (Block& block : blocks)
       for (std::size_t bytes : frame_bytes) block.frames.emplace_back(bytes * buffer_steps);
@@ -424,20 +435,42 @@ struct RolloutWriter::Impl {
     }
   }
 
-  // Extends every step dataset by the block and writes it.
+  // Extends every step dataset by the block and writes it. With
+  // compression, a dataset whose block is whole chunks has them filtered
+  // on the TBB threads (rollout_chunks) and written as they are; the
+  // others, and a last block that ends inside a chunk, go through
+  // H5Dwrite, which filters them here.
   void write_block(const Block& block) {
-    const Hdf5Lock lock = lock_hdf5();
     const auto steps = static_cast<hsize_t>(block.steps);
+    const std::string at_steps =
+        " at steps [" + std::to_string(written) + ", " + std::to_string(written + block.steps) + ")";
+    const std::size_t count = plan_chunks(block);
+    try {
+      rollout_chunks::filter_chunks(chunks, count, compression_level);
+    } catch (const std::runtime_error& e) {
+      fail(path, std::string("cannot compress the step datasets") + at_steps + ": " + e.what());
+    }
+    const Hdf5Lock lock = lock_hdf5();
     for (std::size_t i = 0; i < slots.size(); ++i) {
       StepSlot& slot = slots[i];
       const auto failure = [&](const char* action) {
-        fail(path, std::string("cannot ") + action + " step dataset '" + slot.name + "' at steps [" +
-                       std::to_string(written) + ", " + std::to_string(written + block.steps) + ")");
+        fail(path, std::string("cannot ") + action + " step dataset '" + slot.name + "'" + at_steps);
       };
       slot.extent[0] = static_cast<hsize_t>(written) + steps;
       slot.start[0] = static_cast<hsize_t>(written);
       slot.count[0] = steps;
       if (H5Dset_extent(slot.dataset.get(), slot.extent.data()) < 0) failure("extend");
+      if (first_chunk[i] >= 0) {
+        std::vector<hsize_t> offset = slot.start;
+        for (hsize_t c = 0; c < steps / slot.chunk_steps; ++c) {
+          const rollout_chunks::Chunk& chunk = chunks[static_cast<std::size_t>(first_chunk[i]) + c];
+          offset[0] = slot.start[0] + c * slot.chunk_steps;
+          if (H5Dwrite_chunk(slot.dataset.get(), H5P_DEFAULT, 0, offset.data(), chunk.packed_bytes,
+                             chunk.packed.data()) < 0)
+            failure("write");
+        }
+        continue;
+      }
       const Handle file_space(H5Dget_space(slot.dataset.get()), H5Sclose);
       const int rank = static_cast<int>(slot.count.size());
       const Handle memory_space(H5Screate_simple(rank, slot.count.data(), nullptr), H5Sclose);
@@ -449,6 +482,28 @@ struct RolloutWriter::Impl {
         failure("write");
     }
     written += block.steps;
+  }
+
+  // The whole chunks of the block that write_block filters itself, into
+  // chunks[0, count): with compression, those of every dataset whose block
+  // starts and ends on its chunks' bounds. Returns count.
+  std::size_t plan_chunks(const Block& block) {
+    const auto steps = static_cast<hsize_t>(block.steps);
+    first_chunk.assign(slots.size(), -1);
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < slots.size() && compression_level > 0; ++i) {
+      const StepSlot& slot = slots[i];
+      if (static_cast<hsize_t>(written) % slot.chunk_steps != 0 || steps % slot.chunk_steps != 0) continue;
+      first_chunk[i] = static_cast<int>(count);
+      const std::size_t chunk_bytes = slot.chunk_steps * slot.frame_bytes;
+      for (hsize_t c = 0; c < steps / slot.chunk_steps; ++c, ++count) {
+        if (chunks.size() <= count) chunks.emplace_back();
+        chunks[count].in = block.frames[i].data() + c * chunk_bytes;
+        chunks[count].bytes = chunk_bytes;
+        chunks[count].element = slot.element_bytes;
+      }
+    }
+    return count;
   }
 
   // Everything written so far reaches the file: readers see it, and a killed

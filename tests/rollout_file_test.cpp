@@ -4,6 +4,7 @@
 // The crash tests fork() a child that writes: each forks before starting any
 // thread of its own, the child does nothing but write (its writer starts its
 // own thread), reports through a pipe and ends with _exit().
+#include "io/rollout_chunks.hpp"
 #include "io/rollout_file.hpp"
 #include "io/rollout_hdf5.hpp"
 #include "tests/test_support.hpp"
@@ -276,6 +277,21 @@ TEST(RolloutFile, ChunksAlongStepsWithinFourMebibytes) {
   EXPECT_EQ(layout_of(path, "small").deflate, 0);
 }
 
+// HDF5's shuffle: byte b of every element together; the bytes after the
+// last whole element stay where they are.
+TEST(RolloutFile, ShuffleGathersEachByteOfTheElements) {
+  const std::vector<unsigned char> in = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14};  // 3 elements of 4, 2 more
+  std::vector<unsigned char> out(in.size());
+  rollout_chunks::shuffle(in.data(), in.size(), 4, out.data());
+  EXPECT_EQ(out, (std::vector<unsigned char>{1, 5, 9, 2, 6, 10, 3, 7, 11, 4, 8, 12, 13, 14}));
+  rollout_chunks::shuffle(in.data(), in.size(), 1, out.data());  // bytes: unchanged
+  EXPECT_EQ(out, in);
+  rollout_chunks::shuffle(in.data(), 4, 4, out.data());  // one element: unchanged
+  EXPECT_TRUE(std::equal(in.begin(), in.begin() + 4, out.begin()));
+}
+
+// 500 steps in chunks of 16: 31 blocks of whole chunks, deflated on the TBB
+// threads and written as they are, then 4 steps through HDF5's own filters.
 TEST(RolloutFile, CompressedFileReadsBackTheSame) {
   const TempDir dir;
   RolloutFileOptions options;
