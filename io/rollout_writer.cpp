@@ -142,8 +142,6 @@ struct StepSlot {
   std::vector<hsize_t> start;   // where the next block goes: [T, 0...]
   std::vector<hsize_t> count;   // the block: [steps, shape...]
   hsize_t chunk_steps = 0;      // steps per chunk
-  std::size_t element_bytes = 0;
-  std::size_t frame_bytes = 0;  // one step
 };
 
 // Chunks of [chunk_steps, shape...], unlimited along T, optional shuffle + gzip.
@@ -154,8 +152,6 @@ StepSlot create_step_dataset(hid_t file, const StepDataset& dataset, std::size_t
   slot.name = dataset.name;
   slot.memory_type = memory_type(dataset.type);
   slot.chunk_steps = chunk_steps;
-  slot.element_bytes = element_size(dataset.type);
-  slot.frame_bytes = element_count(dataset.shape) * slot.element_bytes;
   slot.extent = to_hsize(dataset.shape);
   slot.extent.insert(slot.extent.begin(), 0);
   slot.start.assign(slot.extent.size(), 0);
@@ -495,12 +491,12 @@ struct RolloutWriter::Impl {
       const StepSlot& slot = slots[i];
       if (static_cast<hsize_t>(written) % slot.chunk_steps != 0 || steps % slot.chunk_steps != 0) continue;
       first_chunk[i] = static_cast<int>(count);
-      const std::size_t chunk_bytes = slot.chunk_steps * slot.frame_bytes;
+      const std::size_t chunk_bytes = slot.chunk_steps * frame_bytes[i];
       for (hsize_t c = 0; c < steps / slot.chunk_steps; ++c, ++count) {
         if (chunks.size() <= count) chunks.emplace_back();
         chunks[count].in = block.frames[i].data() + c * chunk_bytes;
         chunks[count].bytes = chunk_bytes;
-        chunks[count].element = slot.element_bytes;
+        chunks[count].element = element_size(definitions[i].type);
       }
     }
     return count;

@@ -40,6 +40,8 @@ template <class L>
 struct JointRow {
   L sigma, error, target, target_hi, lo, hi, v_free;
   bool positional;
+  // Per lane: true where the row needs no impulse at its free velocity.
+  lane::mask_t<L> at_rest() const { return row_at_rest(v_free, target, target_hi, lo, hi, error, positional); }
 };
 
 // dt is the (sub)step; friction: (nv) per lane, the Coulomb force of a
@@ -91,8 +93,7 @@ bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& 
                             lane::scalar_t<L> erp) {
   for (const JointRowSpec<lane::scalar_t<L>>& spec : specs) {
     const JointRow<L> row = joint_row<L>(spec, q, v_free, friction, dt, erp);
-    if (!lane::all<L>(row_at_rest(row.v_free, row.target, row.target_hi, row.lo, row.hi, row.error, row.positional)))
-      return false;
+    if (!lane::all<L>(row.at_rest())) return false;
   }
   return true;
 }
@@ -127,7 +128,7 @@ lane::mask_t<L> build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L
   lane::mask_t<L> all_slack(true);
   for (std::size_t r = 0; r < specs.size(); ++r) {
     const JointRow<L> row = joint_row<L>(specs[r], q, v_free, friction, dt, erp);
-    slack[r] = row_at_rest(row.v_free, row.target, row.target_hi, row.lo, row.hi, row.error, row.positional);
+    slack[r] = row.at_rest();
     all_slack = all_slack && slack[r];
     s.sigma[r] = row.sigma;
     rows.error[r] = row.error;
