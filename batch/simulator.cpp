@@ -4,6 +4,7 @@
 #include "batch/fnv1a.hpp"
 #include "batch/require.hpp"
 #include "batch/step_engine.hpp"
+#include "batch/stiff_drives.hpp"
 
 #include <array>
 #include <cmath>
@@ -327,6 +328,11 @@ std::string Simulator::describe_plan() const {
   for (const StageDecision& d : plan_)
     out << "  " << stage_name(d.stage) << ": " << (d.runs ? "runs" : "skipped") << " (" << d.reason << ")\n";
   const bool contacts = contacts_run() && !pairs_.pairs.empty();
+  // a drive stiff enough to act as a hard constraint matters beside other ones
+  auto runs = [&](Stage stage) { return plan_[static_cast<int>(stage)].runs; };
+  if (runs(Stage::Drives) && (contacts || runs(Stage::HardLimits) || runs(Stage::VelocityLimits)) && copies() > 0)
+    out << describe_stiff_drives(*model_, stiff_drives(*model_, dofs_, q(0), options_.dt / options_.substeps),
+                                 options_.substeps);
   const int per_contact = options_.contacts.torsional_friction > 0 ? 4 : 3;
   out << "  solver: ";
   if (row_count() == 0 && !contacts) out << "skipped (no rows)";

@@ -168,6 +168,25 @@ TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithTgs) { expect_finger
 // finger against the coplanar wall (box 1.7e-3 m/s in double, 6e-3 in
 // float, at 256 iterations); at 64, 96, 128 and 256 it holds it in every
 // case tried (96: 8 to 256 iterations over the four starts).
+// describe_plan says so of the finger's drive in one pipeline run (kp h^2
+// / M_kk 23.7 at the start) and not in 32 (a 1024th of it).
+TEST(ContactScenes, TheFingersPlanNamesItsStiffDriveInOneStepOnly) {
+  for (const int substeps : {1, 32}) {
+    StepOptions o;
+    o.dt = 1.0 / 60.0;
+    o.substeps = substeps;
+    ModelBuilder builder;
+    builder.add_articulation(finger_spec());
+    const Model model = builder.finalize();
+    std::vector<DofSettings> dofs = default_dof_settings(model);
+    dofs[model.dof_index("proximal_joint")].drive_stiffness = 100.0;
+    const std::string text = Simulator(model, 1, o, dofs).describe_plan();
+    const bool named =
+        text.find("stiff drives: 1 DOF(s) close half or more of their position error in one step") != std::string::npos;
+    EXPECT_EQ(named, substeps == 1) << text;
+  }
+}
+
 TEST(ContactScenes, StiffFingerHoldsTheBoxWithPgsInThirtyTwoSubsteps) {
   for (const Precision precision : {Precision::Float, Precision::Double})
     for (const double wall_sunk : {0.0, 0.01}) expect_finger_held(SolverType::PGS, precision, wall_sunk, 32);
