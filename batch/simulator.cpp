@@ -4,7 +4,6 @@
 #include "batch/fnv1a.hpp"
 #include "batch/require.hpp"
 #include "batch/step_engine.hpp"
-#include "batch/stiff_drives.hpp"
 
 #include <array>
 #include <cmath>
@@ -328,11 +327,8 @@ std::string Simulator::describe_plan() const {
   for (const StageDecision& d : plan_)
     out << "  " << stage_name(d.stage) << ": " << (d.runs ? "runs" : "skipped") << " (" << d.reason << ")\n";
   const bool contacts = contacts_run() && !pairs_.pairs.empty();
-  // a drive stiff enough to act as a hard constraint matters beside other ones
-  auto runs = [&](Stage stage) { return plan_[static_cast<int>(stage)].runs; };
-  if (runs(Stage::Drives) && (contacts || runs(Stage::HardLimits) || runs(Stage::VelocityLimits)) && copies() > 0)
-    out << describe_stiff_drives(*model_, stiff_drives(*model_, dofs_, q(0), options_.dt / options_.substeps),
-                                 options_.substeps);
+  const std::string stiff = describe_stiff_drives(*model_, stiff_drives(), options_.substeps);
+  if (!stiff.empty()) out << "  " << stiff << "\n";
   const int per_contact = options_.contacts.torsional_friction > 0 ? 4 : 3;
   out << "  solver: ";
   if (row_count() == 0 && !contacts) out << "skipped (no rows)";
@@ -348,6 +344,15 @@ std::string Simulator::describe_plan() const {
   }
   out << "  fault check: always\n";
   return out.str();
+}
+
+std::vector<StiffDrive> Simulator::stiff_drives() const {
+  refresh_plan();
+  // a drive stiff enough to act as a hard constraint matters beside other ones
+  auto runs = [&](Stage stage) { return plan_[static_cast<int>(stage)].runs; };
+  const bool hard = runs(Stage::HardLimits) || runs(Stage::VelocityLimits) || (contacts_run() && !pairs_.pairs.empty());
+  if (!runs(Stage::Drives) || !hard || copies() == 0) return {};
+  return lockstep::stiff_drives(*model_, dofs_, q(0), options_.dt / options_.substeps);
 }
 
 void Simulator::refresh_plan() const {

@@ -18,6 +18,7 @@
 #include "batch/build_info.hpp"
 #include "batch/contact_pairs.hpp"
 #include "batch/step_options.hpp"
+#include "batch/stiff_drives.hpp"
 #include "layout/batch_state.hpp"
 
 #include <memory>
@@ -170,6 +171,10 @@ class Simulator {
   // so (like the setters) call plan() and describe_plan() from one thread.
   const std::vector<StageDecision>& plan() const;
   std::string describe_plan() const;
+  // The drives stiff enough to act as hard constraints (batch/stiff_drives.hpp)
+  // at copy 0's configuration, where the scene has other hard constraints
+  // (limits, velocity limits, contacts) for them to act against; else none.
+  std::vector<StiffDrive> stiff_drives() const;
   // The constraint rows per copy (limit, velocity-limit and friction rows).
   int row_count() const;
 

@@ -29,10 +29,10 @@ std::string describe_stiff_drives(const Model& model, const std::vector<StiffDri
   if (stiff.empty()) return {};
   std::ostringstream out;
   out.precision(3);
-  out << "  stiff drives: " << stiff.size() << " DOF(s) close half or more of their position error in one "
+  out << "stiff drives: " << stiff.size() << " DOF(s) close half or more of their position error in one "
       << (substeps > 1 ? "substep" : "step") << " (kp h^2 / M_kk " << stiff.front().ratio << " at "
       << model.dof_name[stiff.front().dof] << "); held against a limit or contact they need many iterations: "
-      << "lower kp, or more substeps (ratio / substeps^2)\n";
+      << "lower kp, or more substeps (ratio / substeps^2)";
   return out.str();
 }
 

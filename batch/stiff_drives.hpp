@@ -28,7 +28,8 @@ struct StiffDrive {
 std::vector<StiffDrive> stiff_drives(const Model& model, const std::vector<DofSettings>& dofs,
                                      const Eigen::VectorXd& q, double h);
 
-// One line for Simulator::describe_plan, empty when no drive is stiff.
+// One line, without indent or newline, for Simulator::describe_plan and the
+// command-line tool's warnings; empty when no drive is stiff.
 std::string describe_stiff_drives(const Model& model, const std::vector<StiffDrive>& stiff, int substeps);
 
 }  // namespace lockstep

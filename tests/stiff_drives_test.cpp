@@ -43,11 +43,21 @@ TEST(StiffDrives, AccelerationDriveRatioIsKpHSquared) {
   EXPECT_TRUE(stiff_drives(model, driven(model, DriveType::Acceleration, 400.0), q, 0.01).empty());
 }
 
-std::string plan_text(const Model& model, int substeps) {
+Simulator driven_simulator(const Model& model, int substeps) {
   StepOptions o;
   o.dt = 0.01;
   o.substeps = substeps;
-  return Simulator(model, 1, o, driven(model, DriveType::Force, 400.0)).describe_plan();
+  return Simulator(model, 1, o, driven(model, DriveType::Force, 400.0));
+}
+
+std::string plan_text(const Model& model, int substeps) { return driven_simulator(model, substeps).describe_plan(); }
+
+TEST(StiffDrives, TheSimulatorListsThemBesideHardConstraintsAtItsSubstep) {
+  const std::vector<StiffDrive> limited = driven_simulator(spinner(kInertia, -1.0, 1.0), 1).stiff_drives();
+  ASSERT_EQ(limited.size(), 1u);
+  EXPECT_NEAR(limited[0].ratio, 4.0, 1e-12);
+  EXPECT_TRUE(driven_simulator(spinner(kInertia, -1.0, 1.0), 4).stiff_drives().empty());
+  EXPECT_TRUE(driven_simulator(spinner(kInertia), 1).stiff_drives().empty());
 }
 
 TEST(StiffDrives, ThePlanNamesThemBesideHardLimitsOnly) {
