@@ -172,8 +172,10 @@ class Simulator {
   const std::vector<StageDecision>& plan() const;
   std::string describe_plan() const;
   // The drives stiff enough to act as hard constraints (batch/stiff_drives.hpp)
-  // at copy 0's configuration, where the scene has other hard constraints
-  // (limits, velocity limits, contacts) for them to act against; else none.
+  // at copy 0's configuration with the scene's gains (the DofSettings; not a
+  // copy's own from set_drive_gains), where the scene has other hard
+  // constraints (limits, velocity limits, contacts) for them to act against;
+  // else none.
   std::vector<StiffDrive> stiff_drives() const;
   // The constraint rows per copy (limit, velocity-limit and friction rows).
   int row_count() const;
