@@ -34,7 +34,8 @@ class BatchDynamics {
   using Scalar = lane::scalar_t<L>;
   static constexpr int kWidth = static_cast<int>(lane::width_v<L>);
 
-  explicit BatchDynamics(const Model& model);
+  explicit BatchDynamics(const Model& model);  // keeps a reference: the model must outlive it
+  explicit BatchDynamics(Model&&) = delete;
 
   const Model& model() const { return *model_; }
   BatchState<Scalar> make_state(int copies) const { return BatchState<Scalar>(*model_, copies, kWidth); }

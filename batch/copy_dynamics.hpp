@@ -17,7 +17,9 @@ namespace lockstep {
 
 class CopyDynamics {
  public:
+  // Keeps a reference to the model, which must outlive it.
   explicit CopyDynamics(const Model& model, Precision precision = Precision::Double);
+  explicit CopyDynamics(Model&&, Precision = Precision::Double) = delete;
   ~CopyDynamics();
   CopyDynamics(CopyDynamics&&) noexcept;
   CopyDynamics& operator=(CopyDynamics&&) noexcept;

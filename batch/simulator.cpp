@@ -329,6 +329,8 @@ std::string Simulator::describe_plan() const {
   const bool contacts = contacts_run() && !pairs_.pairs.empty();
   const std::string stiff = describe_stiff_drives(*model_, stiff_drives(), options_.substeps);
   if (!stiff.empty()) out << "  " << stiff << "\n";
+  const std::string mimics = unenforced_mimics();
+  if (!mimics.empty()) out << "  " << mimics << "\n";
   const int per_contact = options_.contacts.torsional_friction > 0 ? 4 : 3;
   out << "  solver: ";
   if (row_count() == 0 && !contacts) out << "skipped (no rows)";
@@ -353,6 +355,15 @@ std::vector<StiffDrive> Simulator::stiff_drives() const {
   const bool hard = runs(Stage::HardLimits) || runs(Stage::VelocityLimits) || (contacts_run() && !pairs_.pairs.empty());
   if (!runs(Stage::Drives) || !hard || copies() == 0) return {};
   return lockstep::stiff_drives(*model_, dofs_, q(0), options_.dt / options_.substeps);
+}
+
+std::string Simulator::unenforced_mimics() const {
+  const std::vector<Mimic>& mimics = model_->mimics;
+  if (mimics.empty()) return {};
+  const Mimic& first = mimics.front();
+  return "mimic joints: not enforced (" + std::to_string(mimics.size()) + " mimic tag(s), such as " +
+         model_->dof_name[first.dof] + " following " + model_->dof_name[first.leader_dof] +
+         "; each DOF moves on its own)";
 }
 
 void Simulator::refresh_plan() const {

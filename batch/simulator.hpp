@@ -143,9 +143,12 @@ class Simulator {
  public:
   // dofs: per-DOF joint effects; empty means default_dof_settings(model).
   // Throws std::invalid_argument naming the option or DOF that is wrong.
-  // caller: leave it defaulted (batch/build_info.hpp).
+  // caller: leave it defaulted (batch/build_info.hpp). The simulator keeps a
+  // reference to the model, which must outlive it (a temporary does not
+  // compile).
   Simulator(const Model& model, int copies, const StepOptions& options = {}, std::vector<DofSettings> dofs = {},
             HeaderBuild caller = {});
+  Simulator(Model&&, int, const StepOptions& = {}, std::vector<DofSettings> = {}, HeaderBuild = {}) = delete;
   ~Simulator();
   Simulator(Simulator&&) noexcept;
   Simulator& operator=(Simulator&&) noexcept;
@@ -177,6 +180,9 @@ class Simulator {
   // constraints (limits, velocity limits, contacts) for them to act against;
   // else none.
   std::vector<StiffDrive> stiff_drives() const;
+  // One line on the model's mimic tags, which the step does not enforce yet
+  // (each such DOF moves on its own); empty for a model without them.
+  std::string unenforced_mimics() const;
   // The constraint rows per copy (limit, velocity-limit and friction rows).
   int row_count() const;
 

@@ -37,8 +37,10 @@ struct Shape {
   Eigen::Vector3d mesh_scale = Eigen::Vector3d::Ones();
 };
 
-// A mimic tag: q[dof] = multiplier * q[leader_dof] + offset. Not enforced by
-// the dynamics kernels; the simulation step turns it into a constraint.
+// A mimic tag: q[dof] = multiplier * q[leader_dof] + offset. Read, checked
+// and kept, but not enforced yet: neither the dynamics kernels nor the
+// simulation step couple the two DOFs (Simulator::describe_plan and
+// `lockstep rollout` say so for a model that has tags).
 struct Mimic {
   int dof = -1;
   int leader_dof = -1;

@@ -386,6 +386,26 @@ TEST(Simulator, PlanSaysWhichStagesRunAndWhy) {
   EXPECT_NE(bare.describe_plan().find("hard limits: skipped (forced off (12 DOFs"), std::string::npos);
 }
 
+// Mimic tags are kept in the model but not enforced by the step yet; the
+// plan says so, naming one, rather than letting a gripper's fingers part
+// silently. anymal_b has none; talos_reduced's are all on fixed joints,
+// which the loader drops with a warning.
+TEST(Simulator, PlanSaysMimicTagsAreNotEnforced) {
+  const Model panda_model = test::load_shared_model("panda", false);
+  const Simulator panda(panda_model, 1);
+  EXPECT_EQ(panda.unenforced_mimics(),
+            "mimic joints: not enforced (1 mimic tag(s), such as panda_finger_joint2 following panda_finger_joint1; "
+            "each DOF moves on its own)");
+  EXPECT_NE(panda.describe_plan().find("  " + panda.unenforced_mimics() + "\n"), std::string::npos)
+      << panda.describe_plan();
+  for (const char* name : {"anymal_b", "talos_reduced"}) {
+    const Model model = test::load_shared_model(name, true);
+    const Simulator sim(model, 1);
+    EXPECT_TRUE(sim.unenforced_mimics().empty()) << name;
+    EXPECT_EQ(sim.describe_plan().find("mimic"), std::string::npos) << name;
+  }
+}
+
 TEST(Simulator, BadOptionsAreRejectedByName) {
   const Model model = spinner(0.1, -1.0, 1.0);
   auto expect_error = [&](const StepOptions& o, std::vector<DofSettings> dofs, const std::string& piece) {

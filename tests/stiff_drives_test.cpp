@@ -53,11 +53,12 @@ Simulator driven_simulator(const Model& model, int substeps) {
 std::string plan_text(const Model& model, int substeps) { return driven_simulator(model, substeps).describe_plan(); }
 
 TEST(StiffDrives, TheSimulatorListsThemBesideHardConstraintsAtItsSubstep) {
-  const std::vector<StiffDrive> limited = driven_simulator(spinner(kInertia, -1.0, 1.0), 1).stiff_drives();
-  ASSERT_EQ(limited.size(), 1u);
-  EXPECT_NEAR(limited[0].ratio, 4.0, 1e-12);
-  EXPECT_TRUE(driven_simulator(spinner(kInertia, -1.0, 1.0), 4).stiff_drives().empty());
-  EXPECT_TRUE(driven_simulator(spinner(kInertia), 1).stiff_drives().empty());
+  const Model limited = spinner(kInertia, -1.0, 1.0), free = spinner(kInertia);
+  const std::vector<StiffDrive> stiff = driven_simulator(limited, 1).stiff_drives();
+  ASSERT_EQ(stiff.size(), 1u);
+  EXPECT_NEAR(stiff[0].ratio, 4.0, 1e-12);
+  EXPECT_TRUE(driven_simulator(limited, 4).stiff_drives().empty());
+  EXPECT_TRUE(driven_simulator(free, 1).stiff_drives().empty());
 }
 
 TEST(StiffDrives, ThePlanNamesThemBesideHardLimitsOnly) {
@@ -69,7 +70,8 @@ TEST(StiffDrives, ThePlanNamesThemBesideHardLimitsOnly) {
   // in 4 substeps the ratio is 0.25
   EXPECT_EQ(plan_text(limited, 4).find("stiff drives"), std::string::npos) << plan_text(limited, 4);
   // alone, an implicit drive is stable at any gain: nothing to say
-  EXPECT_EQ(plan_text(spinner(kInertia), 1).find("stiff drives"), std::string::npos) << plan_text(spinner(kInertia), 1);
+  const Model free = spinner(kInertia);
+  EXPECT_EQ(plan_text(free, 1).find("stiff drives"), std::string::npos) << plan_text(free, 1);
 }
 
 }  // namespace
