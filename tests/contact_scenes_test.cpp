@@ -158,18 +158,20 @@ TEST(ContactScenes, StiffFingerHoldsTheBoxAgainstTheWallWithTgs) { expect_finger
 
 // PhysX's remedy for this scene (its "Articulation Drive Stability"): a
 // drive that does not reach its target within one solver step. With the
-// 1/60 s step run as 32 pipeline substeps, the drive's implicit inertia kp h^2 falls
-// from 0.028 to 2.7e-5 kg m^2, below the links' (about 1e-4 about their
-// joints), and the slow mode is gone: PGS holds the finger in both
-// precisions against both walls with 4 to 64 iterations per substep
-// (16 and 32 from this start; 4 to 64 from the box moved 3, -4 and 7.1 mm
-// along the wall), 128 to 2048 sweeps per 1/60 s in all (and 32 runs of
-// the dynamics and contact detection), against 1024 to 4096 in one step. TGS needs more of them: at 32 it does not hold the
-// finger against the coplanar wall (box 1.7e-3 m/s in double, 6e-3 in
-// float, at 256 iterations); at 64, 96, 128 and 256 it holds it in every
-// case tried (96: 8 to 256 iterations over the four starts).
-// describe_plan says so of the finger's drive in one pipeline run (kp h^2
-// / M_kk 23.7 at the start) and not in 32 (a 1024th of it).
+// 1/60 s step run as 32 pipeline substeps, the drive's implicit inertia kp h^2
+// falls from 0.028 to 2.7e-5 kg m^2, well below the proximal joint's own
+// 1.2e-3 (the mass matrix's diagonal), and the slow mode is gone: PGS holds
+// the finger in both precisions against both walls with 4 to 64 iterations
+// per substep (16 and 32 from this start; 4 to 64 from the box moved 3, -4
+// and 7.1 mm along the wall), 128 to 2048 sweeps per 1/60 s in all (and 32
+// runs of the dynamics and contact detection), against 1024 to 4096 in one
+// step. TGS needs more of them: at 32 it does not hold the finger against
+// the coplanar wall (box 1.7e-3 m/s in double, 6e-3 in float, at 256
+// iterations); at 64, 96, 128 and 256 it holds it in every case tried (96: 8
+// to 256 iterations over the four starts).
+//
+// describe_plan names the finger's drive as stiff in one pipeline run
+// (kp h^2 / M_kk 23.7 at the start) and not in 32 (a 1024th of it).
 TEST(ContactScenes, TheFingersPlanNamesItsStiffDriveInOneStepOnly) {
   for (const int substeps : {1, 32}) {
     StepOptions o;
