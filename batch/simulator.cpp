@@ -326,11 +326,8 @@ std::string Simulator::describe_plan() const {
   out << "  kinematics and ABA with gravity: always\n";
   for (const StageDecision& d : plan_)
     out << "  " << stage_name(d.stage) << ": " << (d.runs ? "runs" : "skipped") << " (" << d.reason << ")\n";
-  const bool contacts = contacts_run() && !pairs_.pairs.empty();
-  const std::string stiff = describe_stiff_drives(*model_, stiff_drives(), options_.substeps);
-  if (!stiff.empty()) out << "  " << stiff << "\n";
-  const std::string mimics = unenforced_mimics();
-  if (!mimics.empty()) out << "  " << mimics << "\n";
+  const bool contacts = contacts_found();
+  for (const std::string& warning : warnings()) out << "  " << warning << "\n";
   const int per_contact = options_.contacts.torsional_friction > 0 ? 4 : 3;
   out << "  solver: ";
   if (row_count() == 0 && !contacts) out << "skipped (no rows)";
@@ -352,9 +349,16 @@ std::vector<StiffDrive> Simulator::stiff_drives() const {
   refresh_plan();
   // a drive stiff enough to act as a hard constraint matters beside other ones
   auto runs = [&](Stage stage) { return plan_[static_cast<int>(stage)].runs; };
-  const bool hard = runs(Stage::HardLimits) || runs(Stage::VelocityLimits) || (contacts_run() && !pairs_.pairs.empty());
+  const bool hard = runs(Stage::HardLimits) || runs(Stage::VelocityLimits) || contacts_found();
   if (!runs(Stage::Drives) || !hard || copies() == 0) return {};
   return lockstep::stiff_drives(*model_, dofs_, q(0), options_.dt / options_.substeps);
+}
+
+std::vector<std::string> Simulator::warnings() const {
+  std::vector<std::string> lines;
+  for (std::string line : {describe_stiff_drives(*model_, stiff_drives(), options_.substeps), unenforced_mimics()})
+    if (!line.empty()) lines.push_back(std::move(line));
+  return lines;
 }
 
 std::string Simulator::unenforced_mimics() const {
@@ -376,6 +380,8 @@ void Simulator::refresh_plan() const {
 // The contacts' decision depends on the options and the shape pairs only, so
 // a stale plan holds it too.
 bool Simulator::contacts_run() const { return plan_[static_cast<int>(Stage::Contacts)].runs; }
+
+bool Simulator::contacts_found() const { return contacts_run() && !pairs_.pairs.empty(); }
 
 const std::vector<StageDecision>& Simulator::plan() const {
   refresh_plan();
@@ -754,7 +760,7 @@ void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& norma
 
 template <class F>
 void Simulator::visit_contacts(int copy, F&& f) const {
-  if (!contacts_run() || pairs_.pairs.empty()) return;
+  if (!contacts_found()) return;
   const double h = options_.dt / options_.substeps;
   visit([&](auto& b) {
     using T = std::decay_t<decltype(b.contact_id.at(0, 0))>;
@@ -818,7 +824,7 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::body_contact_wrenches(int co
 
 ContactOverflow Simulator::contact_overflow(int copy) const {
   check_copy(copy, "contact_overflow");
-  if (!contacts_run() || pairs_.pairs.empty()) return {};
+  if (!contacts_found()) return {};
   return visit([&](auto& b) {
     return ContactOverflow{static_cast<int>(b.contact_dropped.at(copy, 0)),
                            static_cast<int>(b.contact_overflow_steps.at(copy, 0))};

@@ -180,9 +180,11 @@ class Simulator {
   // constraints (limits, velocity limits, contacts) for them to act against;
   // else none.
   std::vector<StiffDrive> stiff_drives() const;
-  // One line on the model's mimic tags, which the step does not enforce yet
-  // (each such DOF moves on its own); empty for a model without them.
-  std::string unenforced_mimics() const;
+  // What the plan warns of, one line each (describe_plan indents them,
+  // `lockstep rollout` prints them on stderr): the stiff drives above, and
+  // the model's mimic tags, which the step does not enforce yet (each such
+  // DOF moves on its own). Empty when there is nothing to say.
+  std::vector<std::string> warnings() const;
   // The constraint rows per copy (limit, velocity-limit and friction rows).
   int row_count() const;
 
@@ -269,6 +271,8 @@ class Simulator {
   void invalidate_plan() { plan_stale_ = true; }
   void refresh_plan() const;  // plan_ and the engine's plan, where stale
   bool contacts_run() const;
+  bool contacts_found() const;  // the contacts stage runs and some shape pair may touch
+  std::string unenforced_mimics() const;
   StepPlan step_plan() const;
   std::string rows_summary() const;
   void check_copy(int copy, const char* function) const;  // throws std::out_of_range naming the function

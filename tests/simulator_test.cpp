@@ -393,15 +393,15 @@ TEST(Simulator, PlanSaysWhichStagesRunAndWhy) {
 TEST(Simulator, PlanSaysMimicTagsAreNotEnforced) {
   const Model panda_model = test::load_shared_model("panda", false);
   const Simulator panda(panda_model, 1);
-  EXPECT_EQ(panda.unenforced_mimics(),
-            "mimic joints: not enforced (1 mimic tag(s), such as panda_finger_joint2 following panda_finger_joint1; "
-            "each DOF moves on its own)");
-  EXPECT_NE(panda.describe_plan().find("  " + panda.unenforced_mimics() + "\n"), std::string::npos)
-      << panda.describe_plan();
+  const std::string mimics =
+      "mimic joints: not enforced (1 mimic tag(s), such as panda_finger_joint2 following panda_finger_joint1; "
+      "each DOF moves on its own)";
+  EXPECT_EQ(panda.warnings(), std::vector<std::string>{mimics});
+  EXPECT_NE(panda.describe_plan().find("  " + mimics + "\n"), std::string::npos) << panda.describe_plan();
   for (const char* name : {"anymal_b", "talos_reduced"}) {
     const Model model = test::load_shared_model(name, true);
     const Simulator sim(model, 1);
-    EXPECT_TRUE(sim.unenforced_mimics().empty()) << name;
+    EXPECT_TRUE(sim.warnings().empty()) << name;
     EXPECT_EQ(sim.describe_plan().find("mimic"), std::string::npos) << name;
   }
 }

@@ -167,10 +167,8 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
 
   VecEnv env(scene.model, config.envs, scene.env);
   env.reset();
-  const Simulator& sim = env.simulator();
-  const std::string stiff = describe_stiff_drives(scene.model, sim.stiff_drives(), sim.options().substeps);
-  for (const std::string& warning : {stiff, sim.unenforced_mimics()})
-    if (!warning.empty()) std::fprintf(stderr, "lockstep rollout: warning: %s\n", warning.c_str());
+  for (const std::string& warning : env.simulator().warnings())
+    std::fprintf(stderr, "lockstep rollout: warning: %s\n", warning.c_str());
   RolloutInfo info{scene_to_json(scene), scene.model_path, policy_name(config.policy), {}};
   info.extra.push_back({"threads", static_cast<std::int64_t>(threads)});
   RolloutRecorder recorder(env, config.out, info, config.file);
