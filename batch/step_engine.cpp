@@ -36,9 +36,9 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       contacts(contact.capacity, contact.rows_per_contact, km.nv, km.nbody, candidates), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv), needed(joint_rows + contact.capacity * contact.rows_per_contact),
-      needed_source(needed.m), need(joint_rows), violated(joint_rows), held_displacement(joint_rows),
+      needed_source(needed.m), need(joint_rows), violated(joint_rows),
       column_built(columns), new_columns(columns), held_coupling(static_cast<std::size_t>(columns) * needed.m),
-      dof_velocity(columns), momentum_target(km.nbody), articulation_mass(km.nbody) {}
+      dof_velocity(columns), dof_displacement(columns), held_speed(columns), momentum_target(km.nbody), articulation_mass(km.nbody) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -845,13 +845,13 @@ void StepEngine<L>::solve_round(Scratch* const* s, int count, T h) const {
   RowBlock<L>* blocks[2];
   for (int i = 0; i < count; ++i) {
     blocks[i] = &s[i]->needed;
-    for (int r = 0; r < mj; ++r) {
-      s[i]->violated[r] = lane::mask_t<L>(false);
-      s[i]->held_displacement[r] = L(T(0));
-    }
+    for (int r = 0; r < mj; ++r) s[i]->violated[r] = lane::mask_t<L>(false);
   }
   if (mj > 0)
-    for (int i = 0; i < count; ++i) build_held_coupling(*s[i]);
+    for (int i = 0; i < count; ++i) {
+      build_held_coupling(*s[i]);
+      bound_held_speeds(*s[i], h);
+    }
   auto after_substep = [&](int i) { check_held_rows(*s[i], h); };
   if (count == 2) tgs_solve_blocks<2>(blocks, iterations, h, after_substep);
   else tgs_solve_blocks<1>(blocks, iterations, h, after_substep);
@@ -871,11 +871,30 @@ LOCKSTEP_INLINE void held_dof_velocities(const L* coupling, const L* lambda, int
   for (int g = 0; g < G; ++g) out[d + g] = w[g];
 }
 
+// Before a TGS round: per distinct row DOF, the speed below which its
+// rows held at zero in each lane stay at rest (held_row_speed_bound; no
+// bound from a row the lane's round takes), and its displacement zero.
+template <class L>
+void StepEngine<L>::bound_held_speeds(Scratch& s, T h) const {
+  const L inf(std::numeric_limits<T>::infinity()), zero(T(0));
+  for (int c = 0; c < columns_.size(); ++c) {
+    s.held_speed[c] = inf;
+    s.dof_displacement[c] = zero;
+  }
+  for (int r = 0; r < static_cast<int>(row_specs_.size()); ++r) {
+    L& speed = s.held_speed[row_specs_[r].column];
+    speed = lane::select(s.need[r], speed, lane::min(speed, held_row_speed_bound<L>(row_specs_[r], s.rows.rows, r, h)));
+  }
+  s.held_rows_near_band = false;
+}
+
 // After a TGS substep: s.violated gains the lanes where a joint row held at
 // zero left its band, its target following its own displacement. The
 // row's velocity is v_free + D lambda over the round's rows, read as
 // sigma_r times its DOF's velocity (build_held_coupling): one sum per
-// distinct DOF, no pass over the tree per substep.
+// distinct DOF, no pass over the tree per substep. While every DOF has
+// stayed below its held_speed in every lane, no held row can have left
+// its band, and the rows are not tested.
 template <class L>
 void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
   const int mj = static_cast<int>(row_specs_.size()), iterations = options_.iterations;
@@ -890,20 +909,31 @@ void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
   for (; d < columns; ++d)
     held_dof_velocities<1>(s.held_coupling.data(), sub.lambda.data(), n, s.u_free.data(), columns_.dof.data(), d,
                            velocity);
-  // sigma and the displacements through local pointers, their data
-  // pointers loaded once rather than per row (the mask store below may
-  // alias them)
-  const L* sigma = s.rows.sigma.data();
-  L* held_displacement = s.held_displacement.data();
-  const L substep(h / T(iterations)), inv_substep(T(iterations) / h);
-  for (int r = 0; r < mj; ++r) {
-    const L v = sigma[r] * velocity[row_specs_[r].column];
-    const bool positional = rows.positional[r] != 0;
-    const L target = positional ? tgs_target(rows, r, held_displacement[r], inv_substep) : rows.target[r];
-    const L target_hi = positional ? target : rows.target_hi[r];
-    s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r], positional);
-    held_displacement[r] = lane::fmadd(substep, v, held_displacement[r]);
+  L* displacement = s.dof_displacement.data();
+  if (!s.held_rows_near_band) {
+    lane::mask_t<L> slow(true);
+    for (int c = 0; c < columns; ++c) slow = slow && (lane::abs(velocity[c]) <= s.held_speed[c]);
+    s.held_rows_near_band = !lane::all<L>(slow);
   }
+  if (s.held_rows_near_band) {
+    // sigma through a local pointer, its data pointer loaded once rather
+    // than per row (the mask store below may alias it). A row's
+    // displacement is sigma_r times its DOF's: sigma_r = +-1, and rounding
+    // to nearest is symmetric, so these are the bits of summing
+    // sigma_r w_r per row.
+    const L* sigma = s.rows.sigma.data();
+    const L inv_substep(T(iterations) / h);
+    for (int r = 0; r < mj; ++r) {
+      const int c = row_specs_[r].column;
+      const L v = sigma[r] * velocity[c];
+      const bool positional = rows.positional[r] != 0;
+      const L target = positional ? tgs_target(rows, r, sigma[r] * displacement[c], inv_substep) : rows.target[r];
+      const L target_hi = positional ? target : rows.target_hi[r];
+      s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r], positional);
+    }
+  }
+  const L substep(h / T(iterations));
+  for (int c = 0; c < columns; ++c) displacement[c] = lane::fmadd(substep, velocity[c], displacement[c]);
 }
 
 // After a round: PGS checks its held rows at the velocities it leaves;

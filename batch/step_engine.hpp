@@ -109,22 +109,22 @@ class StepEngine final : public Simulator::Engine {
     // needs, then the contact rows, which prepare_rows builds here), each
     // one's row in `rows` (the contact rows' once spill_contact_rows has
     // put them there), and per joint row the lanes that need it, those
-    // where it left its band held at zero, and (TGS) its displacement held
-    // at zero
+    // where it left its band held at zero
     RowBlock<L> needed;
     std::vector<int> needed_source;
     int needed_joint_rows = 0;  // the joint rows in `needed`, before its contact rows
     std::vector<lane::mask_t<L>> need, violated;
-    std::vector<L> held_displacement;
     // the columns of Mt^-1 built this step, per distinct row DOF
     // (build_joint_columns), and the list of those a round adds
     std::vector<unsigned char> column_built;
     std::vector<int> new_columns;
     // TGS's check of the held joint rows (check_held_rows): per distinct
-    // row DOF, its velocity's coefficient of each row of the round, and
-    // that velocity at a substep
+    // row DOF, its velocity's coefficient of each row of the round, that
+    // velocity at a substep, its displacement over the round so far, and
+    // the speed below which its held rows stay at rest (held_row_speed_bound)
     std::vector<L> held_coupling;  // (columns x needed rows)
-    std::vector<L> dof_velocity;   // (columns)
+    std::vector<L> dof_velocity, dof_displacement, held_speed;  // (columns)
+    bool held_rows_near_band = false;  // some substep of the round exceeded held_speed
     // keep_linear_momentum's, per floating root body: the momentum the step
     // must leave, and the articulation's mass
     std::vector<Vec3<L>> momentum_target;  // (nbody)
@@ -174,6 +174,7 @@ class StepEngine final : public Simulator::Engine {
   void spill_contact_rows(Scratch& s) const;
   void build_round(Scratch& s) const;
   void solve_round(Scratch* const* s, int count, T h) const;
+  void bound_held_speeds(Scratch& s, T h) const;
   void check_held_rows(Scratch& s, T h) const;
   bool end_round(Scratch& s) const;
   void needed_velocity_change(Scratch& s) const;

@@ -115,6 +115,29 @@ lane::mask_t<L> joint_row_slack(const std::vector<JointRowSpec<lane::scalar_t<L>
   return row_slack(s.rows, r, joint_row_velocity(specs, s, r, dv));
 }
 
+// A speed V per lane for TGS's check of a joint row r held at zero through
+// a round of substeps over the (sub)step h: while its DOF's velocity w
+// stays within |w| <= V at every substep, the row stays at rest at every
+// substep, so row_at_rest need not be evaluated. Sufficient, not necessary:
+//   velocity limit: |w| <= v_max is the row's own band;
+//   friction: at rest only at w = 0 (V = 0), or always with no friction;
+//   position limit, error e >= 0: with V = e / (4 h) the displacement of the
+//     round so far is at most h V = e / 4, so e' = e + sigma D >= 3e/4 and
+//     the target -e' / h_sub <= -3e/(4 h) < -V <= sigma w (rounding is far
+//     inside the factor 4). A negative or non-finite e gives no speed.
+template <class L>
+inline L held_row_speed_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const RowBlock<L>& rows, int r,
+                              lane::scalar_t<L> h) {
+  using T = lane::scalar_t<L>;
+  const L inf(std::numeric_limits<T>::infinity()), zero(T(0));
+  switch (spec.kind) {
+    case JointRowKind::PositionLimit: return rows.error[r] * L(T(1) / (T(4) * h));
+    case JointRowKind::VelocityLimit: return L(spec.a);
+    case JointRowKind::Friction: break;
+  }
+  return lane::select(rows.hi[r] > zero, zero, inf);
+}
+
 // Stores the rows of one block for the solver, and each row's slack at the
 // free velocity (row_slack's test, on the row as it is built) in slack[r].
 // Returns their conjunction: true in a lane where no joint row needs an
