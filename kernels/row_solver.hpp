@@ -145,33 +145,92 @@ LOCKSTEP_INLINE void project_to_cone(L& a, L& b, const L& radius) {
   b = b * scale;
 }
 
+// v[i] += D[row[i]][c] lambda[c] for the N rows side by side, over the
+// columns c = from, ..., m - 1, 0, ..., until - 1 (all m columns when
+// from == until), each impulse loaded once for the N chains.
+template <int N, class L>
+LOCKSTEP_INLINE void add_columns(const RowBlock<L>& rows, const int (&row)[N], int from, int until, L (&v)[N]) {
+  const int m = rows.m;
+  const L* D[N];
+  for (int i = 0; i < N; ++i) D[i] = &rows.D[row[i] * m];
+  const L* lambda = rows.lambda.data();
+  auto columns = [&](int begin, int end) {
+    for (int c = begin; c < end; ++c) {
+      const L x = lambda[c];
+      for (int i = 0; i < N; ++i) v[i] = lane::fmadd(D[i][c], x, v[i]);
+    }
+  };
+  columns(from, m);
+  columns(0, until);
+}
+
+// Row r's band step and clamp at velocity v (a friction row bounded by its
+// normal row's impulse: |lambda| <= mu lambda_normal).
+template <class L>
+LOCKSTEP_INLINE void update_row(RowBlock<L>& rows, int r, const L& v) {
+  L lo = rows.lo[r], hi = rows.hi[r];
+  if (rows.bound_row[r] >= 0) {
+    hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
+    lo = -hi;
+  }
+  rows.lambda[r] = lane::clamp(band_step(rows.lambda[r], v, rows.target[r], rows.target_hi[r], rows.inv_diag[r]), lo, hi);
+}
+
+// A cone pair's rows r, r + 1 at velocities (va, vb): each row's
+// unclamped step, then project_to_cone.
+template <class L>
+LOCKSTEP_INLINE void update_cone_pair(RowBlock<L>& rows, int r, const L& va, const L& vb) {
+  L a = rows.lambda[r] - va * rows.inv_diag[r];
+  L b = rows.lambda[r + 1] - vb * rows.inv_diag[r + 1];
+  project_to_cone(a, b, rows.mu[r] * rows.lambda[rows.bound_row[r]]);
+  rows.lambda[r] = a;
+  rows.lambda[r + 1] = b;
+}
+
 // One Gauss-Seidel sweep; v_r recomputed from the impulses, each row's sum
 // started at its own column (row_velocity's `from`): the impulses this sweep
 // changed last enter its chain last, so a row waits on the row before it
 // for one multiply-add rather than for the rest of the sum. Needs
 // invert_diagonal. A cone pair is updated together: each row's unclamped
 // step at the pair's current velocities, then project_to_cone.
+// A single row r and the row or cone pair after it read the same impulses
+// in the same order but for lambda_r, which enters r's sum first (its old
+// value) and theirs last (its new one): their sums run side by side, each
+// impulse loaded once for two or three independent chains, every chain in
+// its own order, so the bits are those of one row after the other.
 template <class L>
 inline void gauss_seidel_sweep(RowBlock<L>& rows) {
   const int m = rows.m;
-  for (int r = 0; r < m; ++r) {
-    const L inv_d = rows.inv_diag[r];
-    if (rows.cone[r]) {
-      L a = rows.lambda[r] - row_velocity(rows, r, r) * inv_d;
-      L b = rows.lambda[r + 1] - row_velocity(rows, r + 1, r) * rows.inv_diag[r + 1];
-      project_to_cone(a, b, rows.mu[r] * rows.lambda[rows.bound_row[r]]);
-      rows.lambda[r] = a;
-      rows.lambda[r + 1] = b;
-      ++r;
+  int r = 0;
+  while (r < m) {
+    if (rows.cone[r]) {  // a cone pair after another pair: its sums from r, around
+      L v[2] = {rows.v_free[r], rows.v_free[r + 1]};
+      add_columns<2>(rows, {r, r + 1}, r, r, v);
+      update_cone_pair(rows, r, v[0], v[1]);
+      r += 2;
       continue;
     }
-    const L v = row_velocity(rows, r, r);
-    L lo = rows.lo[r], hi = rows.hi[r];
-    if (rows.bound_row[r] >= 0) {
-      hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
-      lo = -hi;
+    const int next = r + 1;
+    if (next == m) {
+      update_row(rows, r, row_velocity(rows, r, r));
+      break;
     }
-    rows.lambda[r] = lane::clamp(band_step(rows.lambda[r], v, rows.target[r], rows.target_hi[r], inv_d), lo, hi);
+    const L v_r = lane::fmadd(rows.D[r * m + r], rows.lambda[r], rows.v_free[r]);
+    if (rows.cone[next]) {
+      L v[3] = {v_r, rows.v_free[next], rows.v_free[next + 1]};
+      add_columns<3>(rows, {r, next, next + 1}, next, r, v);
+      update_row(rows, r, v[0]);
+      const L x = rows.lambda[r];
+      update_cone_pair(rows, next, lane::fmadd(rows.D[next * m + r], x, v[1]),
+                       lane::fmadd(rows.D[(next + 1) * m + r], x, v[2]));
+      r += 3;
+    } else {
+      L v[2] = {v_r, rows.v_free[next]};
+      add_columns<2>(rows, {r, next}, next, r, v);
+      update_row(rows, r, v[0]);
+      update_row(rows, next, lane::fmadd(rows.D[next * m + r], rows.lambda[r], v[1]));
+      r += 2;
+    }
   }
 }
 
