@@ -38,7 +38,8 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       v_sum(km.nv), a_sum(km.nv), needed(joint_rows + contact.capacity * contact.rows_per_contact),
       needed_source(needed.m), need(joint_rows), violated(joint_rows),
       column_built(columns), new_columns(columns), held_coupling(static_cast<std::size_t>(columns) * needed.m),
-      dof_velocity(columns), dof_displacement(columns), held_speed(columns), momentum_target(km.nbody), articulation_mass(km.nbody) {}
+      dof_velocity(columns), dof_displacement(columns), held_speed(columns), momentum_target(km.nbody),
+      articulation_mass(km.nbody) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -929,7 +930,8 @@ void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
       const bool positional = rows.positional[r] != 0;
       const L target = positional ? tgs_target(rows, r, sigma[r] * displacement[c], inv_substep) : rows.target[r];
       const L target_hi = positional ? target : rows.target_hi[r];
-      s.violated[r] = s.violated[r] || !row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r], positional);
+      const auto rest = row_at_rest(v, target, target_hi, rows.lo[r], rows.hi[r], rows.error[r], positional);
+      s.violated[r] = s.violated[r] || !rest;
     }
   }
   const L substep(h / T(iterations));

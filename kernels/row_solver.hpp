@@ -173,7 +173,8 @@ LOCKSTEP_INLINE void update_row(RowBlock<L>& rows, int r, const L& v) {
     hi = rows.mu[r] * rows.lambda[rows.bound_row[r]];
     lo = -hi;
   }
-  rows.lambda[r] = lane::clamp(band_step(rows.lambda[r], v, rows.target[r], rows.target_hi[r], rows.inv_diag[r]), lo, hi);
+  const L step = band_step(rows.lambda[r], v, rows.target[r], rows.target_hi[r], rows.inv_diag[r]);
+  rows.lambda[r] = lane::clamp(step, lo, hi);
 }
 
 // A cone pair's rows r, r + 1 at velocities (va, vb): each row's
@@ -203,7 +204,7 @@ inline void gauss_seidel_sweep(RowBlock<L>& rows) {
   const int m = rows.m;
   int r = 0;
   while (r < m) {
-    if (rows.cone[r]) {  // a cone pair after another pair: its sums from r, around
+    if (rows.cone[r]) {  // a cone pair no single row leads: both sums from r, around
       L v[2] = {rows.v_free[r], rows.v_free[r + 1]};
       add_columns<2>(rows, {r, r + 1}, r, r, v);
       update_cone_pair(rows, r, v[0], v[1]);
