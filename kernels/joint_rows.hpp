@@ -82,22 +82,6 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
   return row;
 }
 
-// True where no joint row needs an impulse in any lane of the block: the
-// same test as rows_at_rest on the built rows, without building them (a
-// block at rest then skips the rows altogether). It stops at the first row
-// some lane needs (a friction row whenever its DOF's free velocity is not
-// zero).
-template <class L>
-bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const lane::scalar_t<L>* q,
-                            const L* v_free, const lane::scalar_t<L>* friction, lane::scalar_t<L> dt,
-                            lane::scalar_t<L> erp) {
-  for (const JointRowSpec<lane::scalar_t<L>>& spec : specs) {
-    const JointRow<L> row = joint_row<L>(spec, q, v_free, friction, dt, erp);
-    if (!lane::all<L>(row.at_rest())) return false;
-  }
-  return true;
-}
-
 // Joint row r's velocity (built by build_joint_rows) once other rows'
 // impulses change the DOF velocities by dv (nv): its coupling to the others
 // read from dv (sigma_r dv[dof_r]) instead of from D.
@@ -115,10 +99,12 @@ lane::mask_t<L> joint_row_slack(const std::vector<JointRowSpec<lane::scalar_t<L>
   return row_slack(s.rows, r, joint_row_velocity(specs, s, r, dv));
 }
 
-// A speed V per lane for TGS's check of a joint row r held at zero through
-// a round of substeps over the (sub)step h: while its DOF's velocity w
-// stays within |w| <= V at every substep, the row stays at rest at every
-// substep, so row_at_rest need not be evaluated. Sufficient, not necessary:
+// A speed V per lane below which a joint row stays at rest (needs no
+// impulse) through a round of substeps over the (sub)step h, held at zero:
+// while its DOF's velocity w stays within |w| <= V at every substep, the
+// row is at rest at every substep, so row_at_rest need not be evaluated.
+// Sufficient, not necessary. error: the row's distance to its limit;
+// impulse_bound: a friction row's largest impulse.
 //   velocity limit: |w| <= v_max is the row's own band;
 //   friction: at rest only at w = 0 (V = 0), or always with no friction;
 //   position limit, error e >= 0: with V = e / (4 h) the displacement of the
@@ -126,16 +112,53 @@ lane::mask_t<L> joint_row_slack(const std::vector<JointRowSpec<lane::scalar_t<L>
 //     the target -e' / h_sub <= -3e/(4 h) < -V <= sigma w (rounding is far
 //     inside the factor 4). A negative or non-finite e gives no speed.
 template <class L>
-inline L held_row_speed_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const RowBlock<L>& rows, int r,
-                              lane::scalar_t<L> h) {
+inline L row_speed_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const L& error, const L& impulse_bound,
+                         lane::scalar_t<L> h) {
   using T = lane::scalar_t<L>;
   const L inf(std::numeric_limits<T>::infinity()), zero(T(0));
   switch (spec.kind) {
-    case JointRowKind::PositionLimit: return rows.error[r] * L(T(1) / (T(4) * h));
+    case JointRowKind::PositionLimit: return error * L(T(1) / (T(4) * h));
     case JointRowKind::VelocityLimit: return L(spec.a);
     case JointRowKind::Friction: break;
   }
-  return lane::select(rows.hi[r] > zero, zero, inf);
+  return lane::select(impulse_bound > zero, zero, inf);
+}
+
+// row_speed_bound of built joint row r (build_joint_rows), for TGS's
+// check of the rows a round holds at zero.
+template <class L>
+inline L held_row_speed_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const RowBlock<L>& rows, int r,
+                              lane::scalar_t<L> h) {
+  return row_speed_bound<L>(spec, rows.error[r], rows.hi[r], h);
+}
+
+// True where no joint row needs an impulse in any lane of the block: the
+// same test as rows_at_rest on the built rows, without building them (a
+// block at rest then skips the rows altogether). A row whose DOF moves
+// below its row_speed_bound in every lane (the error the distance to the
+// nearer limit, not yet the one the joint heads for) is at rest without
+// the row's own test. It stops at the first row some lane needs (a
+// friction row whenever its DOF's free velocity is not zero).
+template <class L>
+bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const lane::scalar_t<L>* q,
+                            const L* v_free, const lane::scalar_t<L>* friction, lane::scalar_t<L> dt,
+                            lane::scalar_t<L> erp) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const L zero(T(0));
+  for (const JointRowSpec<T>& spec : specs) {
+    L error = zero, impulse_bound = zero;
+    if (spec.kind == JointRowKind::PositionLimit) {
+      const L qk = lane::load<L>(q + spec.q_index * W);
+      error = lane::min(qk - L(spec.a), L(spec.b) - qk);
+    } else if (spec.kind == JointRowKind::Friction) {
+      impulse_bound = lane::load<L>(friction + spec.dof * W) * L(dt);
+    }
+    if (lane::all<L>(lane::abs(v_free[spec.dof]) <= row_speed_bound<L>(spec, error, impulse_bound, dt))) continue;
+    const JointRow<L> row = joint_row<L>(spec, q, v_free, friction, dt, erp);
+    if (!lane::all<L>(row.at_rest())) return false;
+  }
+  return true;
 }
 
 // Stores the rows of one block for the solver, and each row's slack at the

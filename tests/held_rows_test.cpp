@@ -1,6 +1,7 @@
 // TGS skips testing the joint rows a round holds at zero while every DOF
-// stays below held_row_speed_bound (StepEngine::check_held_rows). That is
-// sound only if the bound is sufficient: at any DOF velocity |w| <= V and
+// stays below held_row_speed_bound (StepEngine::check_held_rows), and
+// joint_rows_all_at_rest skips a row's own test below the same bound. That
+// is sound only if the bound is sufficient: at any DOF velocity |w| <= V and
 // any displacement of the round |D| <= h V, the row is at rest at every
 // substep size. These tests hold each row kind to that, in float and
 // double, at the bound's edges where rounding would show, and check that
@@ -112,6 +113,32 @@ void no_limit_case() {
   EXPECT_FALSE(T(0) <= V);  // even w = 0 is not below it
   r.scratch.rows.error[0] = std::numeric_limits<T>::quiet_NaN();
   EXPECT_FALSE(T(0) <= held_row_speed_bound<T>(r.spec, r.scratch.rows, 0, h));
+}
+
+// joint_rows_all_at_rest skips a row's own test below row_speed_bound (the
+// error the distance to the nearer limit): it must decide as the built
+// rows do, over positions inside, at and past the limits and speeds from
+// zero to far past every bound.
+template <class T>
+void all_at_rest_case() {
+  const T h = T(0.002);
+  for (JointRowKind kind : {JointRowKind::PositionLimit, JointRowKind::VelocityLimit, JointRowKind::Friction})
+    for (T friction : {T(0), T(0.8)})
+      for (T q : {T(-1.1), T(-1), T(-0.999), T(0), T(1.9999), T(2), T(2.5)})
+        for (T u : {T(0), T(1e-6), T(-0.5), T(2.5), T(-7.5), T(7.5), T(12.4), T(-30), T(300)}) {
+          const T a = kind == JointRowKind::VelocityLimit ? T(7.5) : T(-1), b = T(2);
+          const std::vector<JointRowSpec<T>> specs = {JointRowSpec<T>{kind, 0, 0, 0, a, b}};
+          JointRowScratch<T> scratch(1, 1, 1);
+          std::vector<lane::mask_t<T>> slack(1);
+          const bool built = build_joint_rows<T>(specs, &q, &u, &friction, h, T(0.2), scratch, slack);
+          EXPECT_EQ(joint_rows_all_at_rest<T>(specs, &q, &u, &friction, h, T(0.2)), built)
+              << "kind " << static_cast<int>(kind) << ", q " << q << ", u " << u << ", friction " << friction;
+        }
+}
+
+TEST(HeldRowSpeedBound, LeavesTheFreeVelocitysRestTestAsItWas) {
+  all_at_rest_case<float>();
+  all_at_rest_case<double>();
 }
 
 TEST(HeldRowSpeedBound, KeepsAPositionLimitAtRest) {
