@@ -851,7 +851,7 @@ void StepEngine<L>::solve_round(Scratch* const* s, int count, T h) const {
   if (mj > 0)
     for (int i = 0; i < count; ++i) {
       build_held_coupling(*s[i]);
-      bound_held_speeds(*s[i], h);
+      begin_held_check(*s[i], h);
     }
   auto after_substep = [&](int i) { check_held_rows(*s[i], h); };
   if (count == 2) tgs_solve_blocks<2>(blocks, iterations, h, after_substep);
@@ -873,10 +873,10 @@ LOCKSTEP_INLINE void held_dof_velocities(const L* coupling, const L* lambda, int
 }
 
 // Before a TGS round: per distinct row DOF, the speed below which its
-// rows held at zero in each lane stay at rest (held_row_speed_bound; no
+// rows held at zero in each lane stay at rest (row_speed_bound; no
 // bound from a row the lane's round takes), and its displacement zero.
 template <class L>
-void StepEngine<L>::bound_held_speeds(Scratch& s, T h) const {
+void StepEngine<L>::begin_held_check(Scratch& s, T h) const {
   const L inf(std::numeric_limits<T>::infinity()), zero(T(0));
   for (int c = 0; c < columns_.size(); ++c) {
     s.held_speed[c] = inf;
@@ -884,7 +884,8 @@ void StepEngine<L>::bound_held_speeds(Scratch& s, T h) const {
   }
   for (int r = 0; r < static_cast<int>(row_specs_.size()); ++r) {
     L& speed = s.held_speed[row_specs_[r].column];
-    speed = lane::select(s.need[r], speed, lane::min(speed, held_row_speed_bound<L>(row_specs_[r], s.rows.rows, r, h)));
+    const L bound = row_speed_bound<L>(row_specs_[r], s.rows.rows.error[r], s.rows.rows.hi[r], h);
+    speed = lane::select(s.need[r], speed, lane::min(speed, bound));
   }
   s.held_rows_near_band = false;
 }

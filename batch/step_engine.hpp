@@ -121,7 +121,7 @@ class StepEngine final : public Simulator::Engine {
     // TGS's check of the held joint rows (check_held_rows): per distinct
     // row DOF, its velocity's coefficient of each row of the round, that
     // velocity at a substep, its displacement over the round so far, and
-    // the speed below which its held rows stay at rest (held_row_speed_bound)
+    // the speed below which its held rows stay at rest (row_speed_bound)
     std::vector<L> held_coupling;  // (columns x needed rows)
     std::vector<L> dof_velocity, dof_displacement, held_speed;  // (columns)
     bool held_rows_near_band = false;  // some substep of the round exceeded held_speed
@@ -174,7 +174,7 @@ class StepEngine final : public Simulator::Engine {
   void spill_contact_rows(Scratch& s) const;
   void build_round(Scratch& s) const;
   void solve_round(Scratch* const* s, int count, T h) const;
-  void bound_held_speeds(Scratch& s, T h) const;
+  void begin_held_check(Scratch& s, T h) const;
   void check_held_rows(Scratch& s, T h) const;
   bool end_round(Scratch& s) const;
   void needed_velocity_change(Scratch& s) const;

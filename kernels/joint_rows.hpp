@@ -104,7 +104,8 @@ lane::mask_t<L> joint_row_slack(const std::vector<JointRowSpec<lane::scalar_t<L>
 // while its DOF's velocity w stays within |w| <= V at every substep, the
 // row is at rest at every substep, so row_at_rest need not be evaluated.
 // Sufficient, not necessary. error: the row's distance to its limit;
-// impulse_bound: a friction row's largest impulse.
+// impulse_bound: a friction row's largest impulse (a built row's error
+// and hi).
 //   velocity limit: |w| <= v_max is the row's own band;
 //   friction: at rest only at w = 0 (V = 0), or always with no friction;
 //   position limit, error e >= 0: with V = e / (4 h) the displacement of the
@@ -122,14 +123,6 @@ inline L row_speed_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const L& e
     case JointRowKind::Friction: break;
   }
   return lane::select(impulse_bound > zero, zero, inf);
-}
-
-// row_speed_bound of built joint row r (build_joint_rows), for TGS's
-// check of the rows a round holds at zero.
-template <class L>
-inline L held_row_speed_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const RowBlock<L>& rows, int r,
-                              lane::scalar_t<L> h) {
-  return row_speed_bound<L>(spec, rows.error[r], rows.hi[r], h);
 }
 
 // True where no joint row needs an impulse in any lane of the block: the

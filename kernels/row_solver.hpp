@@ -104,15 +104,32 @@ inline lane::mask_t<L> rows_at_rest(const RowBlock<L>& rows) {
   return rest;
 }
 
+// v[i] += D[row[i]][c] lambda[c] for the N rows side by side, over the
+// columns c = from, ..., m - 1, 0, ..., until - 1 (all m columns when
+// from == until), each impulse loaded once for the N chains.
+template <int N, class L>
+LOCKSTEP_INLINE void add_columns(const RowBlock<L>& rows, const int (&row)[N], int from, int until, L (&v)[N]) {
+  const int m = rows.m;
+  const L* D[N];
+  for (int i = 0; i < N; ++i) D[i] = &rows.D[row[i] * m];
+  const L* lambda = rows.lambda.data();
+  auto columns = [&](int begin, int end) {
+    for (int c = begin; c < end; ++c) {
+      const L x = lambda[c];
+      for (int i = 0; i < N; ++i) v[i] = lane::fmadd(D[i][c], x, v[i]);
+    }
+  };
+  columns(from, m);
+  columns(0, until);
+}
+
 // Row r's velocity at the impulses lambda, summed over the columns
 // from, ..., m - 1, 0, ..., from - 1.
 template <class L>
 inline L row_velocity(const RowBlock<L>& rows, int r, int from = 0) {
-  const L* Dr = &rows.D[r * rows.m];
-  L v = rows.v_free[r];
-  for (int c = from; c < rows.m; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
-  for (int c = 0; c < from; ++c) v = lane::fmadd(Dr[c], rows.lambda[c], v);
-  return v;
+  L v[1] = {rows.v_free[r]};
+  add_columns<1>(rows, {r}, from, from, v);
+  return v[0];
 }
 
 // 1 / D_rr, once per solve rather than once per sweep.
@@ -143,25 +160,6 @@ LOCKSTEP_INLINE void project_to_cone(L& a, L& b, const L& radius) {
   const L scale = lane::select(length > radius, radius / lane::max(length, L(std::numeric_limits<T>::min())), L(T(1)));
   a = a * scale;
   b = b * scale;
-}
-
-// v[i] += D[row[i]][c] lambda[c] for the N rows side by side, over the
-// columns c = from, ..., m - 1, 0, ..., until - 1 (all m columns when
-// from == until), each impulse loaded once for the N chains.
-template <int N, class L>
-LOCKSTEP_INLINE void add_columns(const RowBlock<L>& rows, const int (&row)[N], int from, int until, L (&v)[N]) {
-  const int m = rows.m;
-  const L* D[N];
-  for (int i = 0; i < N; ++i) D[i] = &rows.D[row[i] * m];
-  const L* lambda = rows.lambda.data();
-  auto columns = [&](int begin, int end) {
-    for (int c = begin; c < end; ++c) {
-      const L x = lambda[c];
-      for (int i = 0; i < N; ++i) v[i] = lane::fmadd(D[i][c], x, v[i]);
-    }
-  };
-  columns(from, m);
-  columns(0, until);
 }
 
 // Row r's band step and clamp at velocity v (a friction row bounded by its
