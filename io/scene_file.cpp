@@ -1,5 +1,6 @@
 #include "io/scene_file.hpp"
 
+#include "batch/contact_pairs.hpp"
 #include "batch/copy_dynamics.hpp"
 #include "io/joint_state.hpp"
 #include "io/json.hpp"
@@ -13,6 +14,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <sstream>
 #include <tuple>
 #include <utility>
 
@@ -553,6 +555,61 @@ void check(const std::string& file, Check&& run) {
   }
 }
 
+// How far a shape with world pose P reaches from its origin against the
+// unit direction n: its support along -n.
+double depth_along(const Shape& s, const Eigen::Isometry3d& P, const Eigen::Vector3d& n) {
+  const Eigen::Vector3d a = P.linear().transpose() * n;  // n in the shape's axes
+  switch (s.type) {
+    case ShapeType::Sphere: return s.size.x();
+    case ShapeType::Capsule: return std::abs(a.z()) * s.size.y() + s.size.x();
+    case ShapeType::Cylinder:  // the rim's lowest point: the axis's end, then the radius across
+      return std::abs(a.z()) * s.size.y() + s.size.x() * std::sqrt(std::max(0.0, 1.0 - a.z() * a.z()));
+    case ShapeType::Box: return a.cwiseAbs().dot(s.size);
+    case ShapeType::Mesh: break;  // collides with nothing (a mesh whose file was found became a Box)
+  }
+  return 0.0;
+}
+
+// The lowest point of every shape on a moving body at q, along the plane's
+// normal n: (its height n . x - offset, the shape), the lowest first.
+std::optional<std::pair<double, int>> lowest_shape(const Model& model, const Eigen::VectorXd& q,
+                                                   const Eigen::Vector3d& n, double offset) {
+  const std::vector<Eigen::Isometry3d> bodies = CopyDynamics(model).body_poses(q);
+  std::optional<std::pair<double, int>> lowest;
+  for (int i = 0; i < static_cast<int>(model.shapes.size()); ++i) {
+    const Shape& s = model.shapes[i];
+    if (s.body < 0 || s.type == ShapeType::Mesh) continue;
+    const Eigen::Isometry3d P = bodies[s.body] * s.pose;
+    const double height = n.dot(P.translation()) - offset - depth_along(s, P, n);
+    if (!lowest || height < lowest->first) lowest = std::make_pair(height, i);
+  }
+  return lowest;
+}
+
+// A scene whose initial state starts a shape more than 1 cm inside its
+// ground (a fixed base standing at the plane's height, or a floating root
+// left at z = 0) gets a warning: the contacts would push it out at up to
+// their depenetration speed, a violent start no one meant.
+void warn_start_in_ground(Scene& scene) {
+  const ContactSettings& contacts = scene.env.step.contacts;
+  if (!contacts.ground) return;
+  const Model& model = scene.model;
+  const Eigen::VectorXd q = scene.env.initial_q.size() == model.nq ? scene.env.initial_q : model.neutral_configuration();
+  const Eigen::Vector3d n = contacts.ground_normal.normalized();
+  const std::optional<std::pair<double, int>> lowest = lowest_shape(model, q, n, n.z() * contacts.ground_height);
+  if (!lowest || lowest->first > -0.01) return;
+  const bool fixed = std::none_of(model.body_joint.begin(), model.body_joint.end(),
+                                  [](JointType j) { return j == JointType::Free; });
+  std::ostringstream out;
+  out.precision(3);
+  out << scene.source << ": the initial state puts " << describe_shape(model, lowest->second) << " " << -lowest->first
+      << " m inside the ground; its contacts will push it out at up to " << contacts.max_depenetration_speed
+      << " m/s"
+      << (fixed ? " (the base is fixed: with a floating base the robot starts standing on the ground)"
+                : " (initial_state.q sets the root's height)");
+  scene.value_warnings.push_back(out.str());
+}
+
 Scene read_scene_file(const std::string& path, bool floating_base, bool ground) {
   json::Value root_value;
   try {
@@ -591,6 +648,7 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
     root.at("randomization").key("ground_friction").fail("the scene has no ground");
   check(path, [&] { validate_contact_settings(model, env.step.contacts); });
   check(path, [&] { validate_randomization(env.randomization); });
+  warn_start_in_ground(scene);
   return scene;
 }
 
@@ -891,37 +949,12 @@ json::Value randomization_value(const Randomization& r) {
 
 Scene load_scene(const std::string& path) { return read_scene_file(path, false, false); }
 
-namespace {
-
-// How far below its origin a shape with world pose P reaches along z.
-double depth_below_origin(const Shape& s, const Eigen::Isometry3d& P) {
-  const Eigen::Vector3d z_row = P.linear().row(2).transpose();  // the shape's axes' world z components
-  switch (s.type) {
-    case ShapeType::Sphere: return s.size.x();
-    case ShapeType::Capsule: return std::abs(z_row.z()) * s.size.y() + s.size.x();
-    case ShapeType::Cylinder:  // the rim's lowest point: the axis's end, then the radius across
-      return std::abs(z_row.z()) * s.size.y() + s.size.x() * std::sqrt(std::max(0.0, 1.0 - z_row.z() * z_row.z()));
-    case ShapeType::Box: return z_row.cwiseAbs().dot(s.size);
-    case ShapeType::Mesh: break;  // collides with nothing (a mesh whose file was found became a Box)
-  }
-  return 0.0;
-}
-
-}  // namespace
-
 std::optional<double> resting_root_height(const Model& model, Eigen::VectorXd q) {
   for (int b = 0; b < model.nbody; ++b)
     if (is_floating_root(model, b)) q[model.body_q_offset[b] + 2] = 0;
-  const std::vector<Eigen::Isometry3d> bodies = CopyDynamics(model).body_poses(q);
-  std::optional<double> lowest;
-  for (const Shape& s : model.shapes) {
-    if (s.body < 0 || s.type == ShapeType::Mesh) continue;
-    const Eigen::Isometry3d P = bodies[s.body] * s.pose;
-    const double bottom = P.translation().z() - depth_below_origin(s, P);
-    lowest = lowest ? std::min(*lowest, bottom) : bottom;
-  }
+  const std::optional<std::pair<double, int>> lowest = lowest_shape(model, q, Eigen::Vector3d::UnitZ(), 0.0);
   if (!lowest) return std::nullopt;
-  return -*lowest;
+  return -lowest->first;
 }
 
 Scene scene_from_urdf(const std::string& urdf_path, bool floating_base, bool ground) {
@@ -934,6 +967,7 @@ Scene scene_from_urdf(const std::string& urdf_path, bool floating_base, bool gro
         if (is_floating_root(scene.model, b)) q[scene.model.body_q_offset[b] + 2] = *height;
     scene.env.initial_q = q;
   }
+  warn_start_in_ground(scene);
   return scene;
 }
 

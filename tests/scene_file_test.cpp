@@ -576,6 +576,28 @@ TEST(SceneFileBundled, AFloatingUrdfOnTheGroundStartsTouchingIt) {
   }
 }
 
+// An initial state that starts a shape more than 1 cm inside the ground
+// is a warning naming the shape and the depth: a fixed base at the
+// plane's height, or a floating root a scene file leaves at z = 0.
+TEST_F(SceneFile, AStartInsideTheGroundIsWarnedAbout) {
+  auto expect_warning = [](const Scene& s, const std::string& hint) {
+    ASSERT_EQ(s.value_warnings.size(), 1u) << s.source;
+    const std::string& w = s.value_warnings[0];
+    EXPECT_EQ(w.find(s.source + ": the initial state puts "), 0u) << w;
+    EXPECT_NE(w.find("(sphere, shape "), std::string::npos) << w;  // the bundled quadruped's feet
+    EXPECT_NE(w.find(" m inside the ground; its contacts will push it out at up to 1 m/s"), std::string::npos) << w;
+    EXPECT_NE(w.find(hint), std::string::npos) << w;
+  };
+  expect_warning(scene_from_urdf(kQuadruped, false, true), "(the base is fixed: with a floating base");
+  const std::string model = json_string(fs::absolute(kQuadruped).string());
+  expect_warning(load_scene(write("at_zero.json", "{\"model\": " + model + R"(, "floating_base": true, "ground": {}})")),
+                 "(initial_state.q sets the root's height)");
+  // standing on the ground, or no ground: nothing to say
+  EXPECT_TRUE(scene_from_urdf(kQuadruped, true, true).value_warnings.empty());
+  EXPECT_TRUE(scene_from_urdf(kQuadruped, false, false).value_warnings.empty());
+  EXPECT_TRUE(load_scene(kModelsDir + "/quadruped_scene.json").value_warnings.empty());
+}
+
 TEST(SceneFileBundled, QuadrupedStartsStandingJustAboveTheGround) {
   const Scene s = load_scene(kModelsDir + "/quadruped_scene.json");
   EXPECT_TRUE(s.floating_base);
