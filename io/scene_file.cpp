@@ -586,30 +586,6 @@ std::optional<std::pair<double, int>> lowest_shape(const Model& model, const Eig
   return lowest;
 }
 
-// A scene whose initial state starts a shape more than 1 cm inside its
-// ground (a fixed base standing at the plane's height, or a floating root
-// left at z = 0) gets a warning: the contacts would push it out at up to
-// their depenetration speed, a violent start no one meant.
-void warn_start_in_ground(Scene& scene) {
-  const ContactSettings& contacts = scene.env.step.contacts;
-  if (!contacts.ground) return;
-  const Model& model = scene.model;
-  const Eigen::VectorXd q = scene.env.initial_q.size() == model.nq ? scene.env.initial_q : model.neutral_configuration();
-  const Eigen::Vector3d n = contacts.ground_normal.normalized();
-  const std::optional<std::pair<double, int>> lowest = lowest_shape(model, q, n, n.z() * contacts.ground_height);
-  if (!lowest || lowest->first > -0.01) return;
-  const bool fixed = std::none_of(model.body_joint.begin(), model.body_joint.end(),
-                                  [](JointType j) { return j == JointType::Free; });
-  std::ostringstream out;
-  out.precision(3);
-  out << scene.source << ": the initial state puts " << describe_shape(model, lowest->second) << " " << -lowest->first
-      << " m inside the ground; its contacts will push it out at up to " << contacts.max_depenetration_speed
-      << " m/s"
-      << (fixed ? " (the base is fixed: with a floating base the robot starts standing on the ground)"
-                : " (initial_state.q sets the root's height)");
-  scene.value_warnings.push_back(out.str());
-}
-
 Scene read_scene_file(const std::string& path, bool floating_base, bool ground) {
   json::Value root_value;
   try {
@@ -648,7 +624,7 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
     root.at("randomization").key("ground_friction").fail("the scene has no ground");
   check(path, [&] { validate_contact_settings(model, env.step.contacts); });
   check(path, [&] { validate_randomization(env.randomization); });
-  warn_start_in_ground(scene);
+  update_ground_start_warning(scene);
   return scene;
 }
 
@@ -967,7 +943,7 @@ Scene scene_from_urdf(const std::string& urdf_path, bool floating_base, bool gro
         if (is_floating_root(scene.model, b)) q[scene.model.body_q_offset[b] + 2] = *height;
     scene.env.initial_q = q;
   }
-  warn_start_in_ground(scene);
+  update_ground_start_warning(scene);
   return scene;
 }
 
@@ -977,6 +953,34 @@ Scene load_scene_or_urdf(const std::string& path, bool floating_base, bool groun
 }
 
 void disable_contacts(Scene& scene) { scene.env.step.force(Stage::Contacts, StageMode::Off); }
+
+// A fixed base standing at the plane's height, or a floating root left at
+// z = 0: the contacts would push the robot out at up to their
+// depenetration speed, a violent start no one meant.
+void update_ground_start_warning(Scene& scene) {
+  const std::string prefix = scene.source + ": the initial state puts ";
+  std::vector<std::string>& warnings = scene.value_warnings;
+  warnings.erase(std::remove_if(warnings.begin(), warnings.end(),
+                                [&](const std::string& w) { return w.rfind(prefix, 0) == 0; }),
+                 warnings.end());
+  const ContactSettings& contacts = scene.env.step.contacts;
+  if (!contacts.ground || scene.env.step.stages[static_cast<int>(Stage::Contacts)] == StageMode::Off) return;
+  const Model& model = scene.model;
+  const Eigen::VectorXd q = scene.env.initial_q.size() == model.nq ? scene.env.initial_q : model.neutral_configuration();
+  const Eigen::Vector3d n = contacts.ground_normal.normalized();
+  const std::optional<std::pair<double, int>> lowest = lowest_shape(model, q, n, n.z() * contacts.ground_height);
+  if (!lowest || lowest->first > -0.01) return;
+  const bool fixed = std::none_of(model.body_joint.begin(), model.body_joint.end(),
+                                  [](JointType j) { return j == JointType::Free; });
+  std::ostringstream out;
+  out.precision(3);
+  out << prefix << describe_shape(model, lowest->second) << " " << -lowest->first
+      << " m inside the ground; its contacts will push it out at up to " << contacts.max_depenetration_speed
+      << " m/s"
+      << (fixed ? " (the base is fixed: with a floating base the robot starts standing on the ground)"
+                : " (initial_state.q sets the root's height)");
+  warnings.push_back(out.str());
+}
 
 std::string scene_to_json(const Scene& scene) {
   const Model& model = scene.model;

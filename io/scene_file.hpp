@@ -67,6 +67,13 @@ Scene load_scene_or_urdf(const std::string& path, bool floating_base, bool groun
 // Contacts off entirely (`--no-contacts`): Stage::Contacts forced Off.
 void disable_contacts(Scene& scene);
 
+// States in scene.value_warnings, in place of an earlier such warning,
+// whether the scene's initial state (the neutral configuration when it has
+// none) starts a shape more than 1 cm inside its ground: the contacts would
+// push it out at up to their depenetration speed. The loaders call it;
+// call it again after changing env.initial_q, the ground or the contacts.
+void update_ground_start_warning(Scene& scene);
+
 // The scene as scene-file JSON that load_scene reads back to the same
 // options, bit for bit (every value written explicitly, the model path
 // absolute), e.g. to record in a rollout exactly what ran. Throws

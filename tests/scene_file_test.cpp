@@ -588,10 +588,21 @@ TEST_F(SceneFile, AStartInsideTheGroundIsWarnedAbout) {
     EXPECT_NE(w.find(" m inside the ground; its contacts will push it out at up to 1 m/s"), std::string::npos) << w;
     EXPECT_NE(w.find(hint), std::string::npos) << w;
   };
-  expect_warning(scene_from_urdf(kQuadruped, false, true), "(the base is fixed: with a floating base");
+  Scene fixed = scene_from_urdf(kQuadruped, false, true);
+  expect_warning(fixed, "(the base is fixed: with a floating base");
+  // restated for the state and contacts that will run: none without contacts
+  disable_contacts(fixed);
+  update_ground_start_warning(fixed);
+  EXPECT_TRUE(fixed.value_warnings.empty());
   const std::string model = json_string(fs::absolute(kQuadruped).string());
-  expect_warning(load_scene(write("at_zero.json", "{\"model\": " + model + R"(, "floating_base": true, "ground": {}})")),
-                 "(initial_state.q sets the root's height)");
+  Scene at_zero = load_scene(write("at_zero.json", "{\"model\": " + model + R"(, "floating_base": true, "ground": {}})"));
+  expect_warning(at_zero, "(initial_state.q sets the root's height)");
+  // lifted to where it touches: the warning goes, and only that one
+  at_zero.value_warnings.push_back("another");
+  at_zero.env.initial_q = at_zero.model.neutral_configuration();
+  at_zero.env.initial_q[2] = *resting_root_height(at_zero.model, at_zero.env.initial_q);
+  update_ground_start_warning(at_zero);
+  EXPECT_EQ(at_zero.value_warnings, std::vector<std::string>{"another"});
   // standing on the ground, or no ground: nothing to say
   EXPECT_TRUE(scene_from_urdf(kQuadruped, true, true).value_warnings.empty());
   EXPECT_TRUE(scene_from_urdf(kQuadruped, false, false).value_warnings.empty());

@@ -136,15 +136,6 @@ class Progress {
 
 Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, bool no_contacts) {
   Scene scene = load_scene_or_urdf(path, floating_base, ground);
-  // The URDF's import warnings (a mesh not found leaves its link without
-  // collision geometry): the first few, and where to read them all.
-  constexpr std::size_t kShown = 3;
-  for (std::size_t i = 0; i < std::min(scene.warnings.size(), kShown); ++i)
-    std::fprintf(stderr, "lockstep: warning: %s\n", scene.warnings[i].c_str());
-  if (scene.warnings.size() > kShown)
-    std::fprintf(stderr, "lockstep: warning: %zu more loading warnings (`lockstep info %s` lists them all)\n",
-                 scene.warnings.size() - kShown, scene.model_path.c_str());
-  for (const std::string& warning : scene.value_warnings) std::fprintf(stderr, "lockstep: warning: %s\n", warning.c_str());
   if (scene.source == scene.model_path) {
     // A bare URDF: bench's standing scene, its drives taking position targets.
     const step_scene::Scene standing = step_scene::make_scene(scene.model, scene.env.step.contacts.ground);
@@ -154,6 +145,16 @@ Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, b
   }
   fill_initial_state(scene.model, scene.env);  // what VecEnv fills too: bench reads the scene's state directly
   if (no_contacts) disable_contacts(scene);
+  update_ground_start_warning(scene);  // for the state and contacts that run
+  // The URDF's import warnings (a mesh not found leaves its link without
+  // collision geometry): the first few, and where to read them all.
+  constexpr std::size_t kShown = 3;
+  for (std::size_t i = 0; i < std::min(scene.warnings.size(), kShown); ++i)
+    std::fprintf(stderr, "lockstep: warning: %s\n", scene.warnings[i].c_str());
+  if (scene.warnings.size() > kShown)
+    std::fprintf(stderr, "lockstep: warning: %zu more loading warnings (`lockstep info %s` lists them all)\n",
+                 scene.warnings.size() - kShown, scene.model_path.c_str());
+  for (const std::string& warning : scene.value_warnings) std::fprintf(stderr, "lockstep: warning: %s\n", warning.c_str());
   return scene;
 }
 
