@@ -570,8 +570,8 @@ double depth_along(const Shape& s, const Eigen::Isometry3d& P, const Eigen::Vect
   return 0.0;
 }
 
-// The lowest point of every shape on a moving body at q, along the plane's
-// normal n: (its height n . x - offset, the shape), the lowest first.
+// The lowest point along the plane normal n of the shapes on moving bodies
+// at q: its height n . x - offset and its shape; nullopt without shapes.
 std::optional<std::pair<double, int>> lowest_shape(const Model& model, const Eigen::VectorXd& q,
                                                    const Eigen::Vector3d& n, double offset) {
   const std::vector<Eigen::Isometry3d> bodies = CopyDynamics(model).body_poses(q);
