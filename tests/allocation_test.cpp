@@ -44,7 +44,8 @@ thread_local bool in_backtrace = false;
   return backtrace(frames, 2) > 0;  // loads the unwinder before anything is counted
 }();
 
-void note_allocation() {
+// Unused under the sanitizers, which keep their own operator new (below).
+[[maybe_unused]] void note_allocation() {
   if (!counting.load(std::memory_order_relaxed) || in_backtrace) return;
   const long n = allocations.fetch_add(1, std::memory_order_relaxed);
   if (n < kStacksKept) {
