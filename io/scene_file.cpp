@@ -624,7 +624,6 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
     root.at("randomization").key("ground_friction").fail("the scene has no ground");
   check(path, [&] { validate_contact_settings(model, env.step.contacts); });
   check(path, [&] { validate_randomization(env.randomization); });
-  update_ground_start_warning(scene);
   return scene;
 }
 
@@ -943,7 +942,6 @@ Scene scene_from_urdf(const std::string& urdf_path, bool floating_base, bool gro
         if (is_floating_root(scene.model, b)) q[scene.model.body_q_offset[b] + 2] = *height;
     scene.env.initial_q = q;
   }
-  update_ground_start_warning(scene);
   return scene;
 }
 
@@ -955,31 +953,25 @@ Scene load_scene_or_urdf(const std::string& path, bool floating_base, bool groun
 void disable_contacts(Scene& scene) { scene.env.step.force(Stage::Contacts, StageMode::Off); }
 
 // A fixed base standing at the plane's height, or a floating root left at
-// z = 0: the contacts would push the robot out at up to their
-// depenetration speed, a violent start no one meant.
-void update_ground_start_warning(Scene& scene) {
-  const std::string prefix = scene.source + ": the initial state puts ";
-  std::vector<std::string>& warnings = scene.value_warnings;
-  warnings.erase(std::remove_if(warnings.begin(), warnings.end(),
-                                [&](const std::string& w) { return w.rfind(prefix, 0) == 0; }),
-                 warnings.end());
+// z = 0: a violent start no one meant.
+std::optional<std::string> ground_start_warning(const Scene& scene) {
   const ContactSettings& contacts = scene.env.step.contacts;
-  if (!contacts.ground || scene.env.step.stages[static_cast<int>(Stage::Contacts)] == StageMode::Off) return;
+  if (!contacts.ground || scene.env.step.stages[static_cast<int>(Stage::Contacts)] == StageMode::Off) return std::nullopt;
   const Model& model = scene.model;
   const Eigen::VectorXd q = scene.env.initial_q.size() == model.nq ? scene.env.initial_q : model.neutral_configuration();
   const Eigen::Vector3d n = contacts.ground_normal.normalized();
   const std::optional<std::pair<double, int>> lowest = lowest_shape(model, q, n, n.z() * contacts.ground_height);
-  if (!lowest || lowest->first > -0.01) return;
+  if (!lowest || lowest->first > -0.01) return std::nullopt;
   const bool fixed = std::none_of(model.body_joint.begin(), model.body_joint.end(),
                                   [](JointType j) { return j == JointType::Free; });
   std::ostringstream out;
   out.precision(3);
-  out << prefix << describe_shape(model, lowest->second) << " " << -lowest->first
-      << " m inside the ground; its contacts will push it out at up to " << contacts.max_depenetration_speed
-      << " m/s"
+  out << scene.source << ": the initial state puts " << describe_shape(model, lowest->second) << " "
+      << -lowest->first << " m inside the ground; its contacts will push it out at up to "
+      << contacts.max_depenetration_speed << " m/s"
       << (fixed ? " (the base is fixed: with a floating base the robot starts standing on the ground)"
                 : " (initial_state.q sets the root's height)");
-  warnings.push_back(out.str());
+  return out.str();
 }
 
 std::string scene_to_json(const Scene& scene) {

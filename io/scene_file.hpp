@@ -67,12 +67,13 @@ Scene load_scene_or_urdf(const std::string& path, bool floating_base, bool groun
 // Contacts off entirely (`--no-contacts`): Stage::Contacts forced Off.
 void disable_contacts(Scene& scene);
 
-// States in scene.value_warnings, in place of an earlier such warning,
-// whether the scene's initial state (the neutral configuration when it has
-// none) starts a shape more than 1 cm inside its ground: the contacts would
-// push it out at up to their depenetration speed. The loaders call it;
-// call it again after changing env.initial_q, the ground or the contacts.
-void update_ground_start_warning(Scene& scene);
+// A warning when the scene's initial state (the neutral configuration
+// when it has none) starts a shape more than 1 cm inside its ground, with
+// contacts on: the contacts would push it out at up to their depenetration
+// speed. Derived from the scene as it is, so ask after changing its state,
+// ground or contacts (`lockstep rollout` and `bench` ask after posing a
+// bare URDF and applying --no-contacts).
+std::optional<std::string> ground_start_warning(const Scene& scene);
 
 // The scene as scene-file JSON that load_scene reads back to the same
 // options, bit for bit (every value written explicitly, the model path

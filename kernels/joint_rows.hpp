@@ -35,6 +35,14 @@ struct JointRowScratch {
   JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), columns(ncolumn * nv) {}
 };
 
+// A Friction row's impulse bound over the (sub)step dt: its DOF's Coulomb
+// force (friction: (nv) per lane) times dt.
+template <class L>
+inline L friction_impulse_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const lane::scalar_t<L>* friction,
+                                lane::scalar_t<L> dt) {
+  return lane::load<L>(friction + spec.dof * lane::width_v<L>) * L(dt);
+}
+
 // One joint row of one block, per lane, from q and the free velocity u*.
 template <class L>
 struct JointRow {
@@ -74,7 +82,7 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
       row.target_hi = L(spec.a);
       break;
     case JointRowKind::Friction:
-      row.hi = lane::load<L>(friction + spec.dof * W) * L(dt);
+      row.hi = friction_impulse_bound<L>(spec, friction, dt);
       row.lo = -row.hi;
       break;
   }
@@ -145,7 +153,7 @@ bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& 
       const L qk = lane::load<L>(q + spec.q_index * W);
       error = lane::min(qk - L(spec.a), L(spec.b) - qk);
     } else if (spec.kind == JointRowKind::Friction) {
-      impulse_bound = lane::load<L>(friction + spec.dof * W) * L(dt);
+      impulse_bound = friction_impulse_bound<L>(spec, friction, dt);
     }
     if (lane::all<L>(lane::abs(v_free[spec.dof]) <= row_speed_bound<L>(spec, error, impulse_bound, dt))) continue;
     const JointRow<L> row = joint_row<L>(spec, q, v_free, friction, dt, erp);

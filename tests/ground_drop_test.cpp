@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <iostream>
+#include <optional>
 
 namespace lockstep::test {
 namespace {
@@ -49,17 +50,18 @@ Drop drop(const Model& model, Precision precision, SolverType solver) {
   return r;
 }
 
-// Whether every collision element of the URDF became a shape, and there
-// are some.
-bool collision_geometry_whole(const std::string& name, Model& model) {
+// The model, floating, when every collision element of its URDF became a
+// shape and there are some; nullopt otherwise.
+std::optional<Model> with_whole_collision_geometry(const std::string& name) {
   UrdfOptions floating;
   floating.floating_base = true;
   std::vector<std::string> warnings;
-  model = load_urdf(shared_model_path(name), floating, {}, &warnings);
+  Model model = load_urdf(shared_model_path(name), floating, {}, &warnings);
   const bool skipped = std::any_of(warnings.begin(), warnings.end(), [](const std::string& w) {
     return w.find("collision geometry skipped") != std::string::npos;
   });
-  return !skipped && !model.shapes.empty();
+  if (skipped || model.shapes.empty()) return std::nullopt;
+  return model;
 }
 
 // Bounds: 1 mm of penetration and 1e-3 m/s (rad/s) of motion, those of the
@@ -69,12 +71,12 @@ bool collision_geometry_whole(const std::string& name, Model& model) {
 TEST(GroundDrop, EveryRobotWithItsCollisionGeometryLandsAndComesToRest) {
   std::vector<std::string> dropped;
   for (const std::string& name : shared_model_names()) {
-    Model model;
-    if (!collision_geometry_whole(name, model)) continue;
+    const std::optional<Model> model = with_whole_collision_geometry(name);
+    if (!model) continue;
     dropped.push_back(name);
     for (SolverType solver : {SolverType::PGS, SolverType::TGS})
       for (Precision precision : {Precision::Float, Precision::Double}) {
-        const Drop r = drop(model, precision, solver);
+        const Drop r = drop(*model, precision, solver);
         const std::string what = name + ", " + solver_name(solver) + ", " + precision_name(precision);
         EXPECT_EQ(r.faulted_steps, 0) << what;
         EXPECT_GT(r.deepest, -1e-3) << what;

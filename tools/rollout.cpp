@@ -145,7 +145,6 @@ Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, b
   }
   fill_initial_state(scene.model, scene.env);  // what VecEnv fills too: bench reads the scene's state directly
   if (no_contacts) disable_contacts(scene);
-  update_ground_start_warning(scene);  // for the state and contacts that run
   // The URDF's import warnings (a mesh not found leaves its link without
   // collision geometry): the first few, and where to read them all.
   constexpr std::size_t kShown = 3;
@@ -155,6 +154,8 @@ Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, b
     std::fprintf(stderr, "lockstep: warning: %zu more loading warnings (`lockstep info %s` lists them all)\n",
                  scene.warnings.size() - kShown, scene.model_path.c_str());
   for (const std::string& warning : scene.value_warnings) std::fprintf(stderr, "lockstep: warning: %s\n", warning.c_str());
+  if (const std::optional<std::string> start = ground_start_warning(scene))  // the state and contacts that run
+    std::fprintf(stderr, "lockstep: warning: %s\n", start->c_str());
   return scene;
 }
 
