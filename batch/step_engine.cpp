@@ -441,20 +441,21 @@ void StepEngine<L>::end_block(int block, T h, Scratch& s) {
   s.clock.lap(&StepProfile::integration);
 }
 
-// Positions move by velocity * step: TGS by its substep displacement;
-// otherwise by the integrator's velocity: semi-implicit Euler v1; trapezoid
-// (v0 + v1)/2, except in copies whose rows act this step, which move with v1
-// so that the speculative limit rows hold exactly.
+// Positions move by velocity * step. Copies whose rows act this step move
+// by what the solver leaves: PGS by v1, so that the speculative limit rows
+// hold exactly, TGS by its substeps' displacement. The others move by the
+// integrator's velocity: semi-implicit Euler v1, trapezoid (v0 + v1)/2.
+// TGS returns a displacement (the scale 1), the others a velocity (h).
 template <class L>
 lane::scalar_t<L> StepEngine<L>::position_velocity(const Scratch& s, T h, T* velocity) const {
   constexpr std::size_t W = lane::width_v<L>;
   const bool tgs = options_.solver == SolverType::TGS;
   const bool trapezoid = options_.integrator == Integrator::Trapezoid;
+  const L scale(tgs ? h : T(1));
   for (int k = 0; k < km_.nv; ++k) {
-    L u = s.u1[k];
-    if (tgs) u = s.displacement[k];
-    else if (trapezoid) u = lane::select(s.rows_at_rest, L(T(0.5)) * (s.u0[k] + s.u1[k]), s.u1[k]);
-    lane::store(u, velocity + k * W);
+    const L acting = tgs ? s.displacement[k] : s.u1[k];
+    const L resting = trapezoid ? scale * (L(T(0.5)) * (s.u0[k] + s.u1[k])) : scale * s.u1[k];
+    lane::store(lane::select(s.rows_at_rest, resting, acting), velocity + k * W);
   }
   return tgs ? T(1) : h;
 }
