@@ -2,6 +2,7 @@
 
 #include "batch/require.hpp"
 #include "layout/model.hpp"
+#include "layout/rotation.hpp"
 
 #include <cmath>
 #include <stdexcept>
@@ -52,6 +53,7 @@ void validate_contact_settings(const Model& model, const ContactSettings& s) {
     require(box.half_extents.allFinite() && (box.half_extents.array() > 0).all(),
             where + ": half_extents must be finite and positive");
     require(box.pose.matrix().allFinite(), where + ": pose must be finite");
+    require(is_rotation(box.pose.linear()), where + ": pose's rotation is not a rotation matrix (orthonormal, det +1)");
     check_surface(box.contact, where);
   }
   require(s.self_collision.size() <= model.articulations.size(),

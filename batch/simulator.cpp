@@ -161,6 +161,7 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     require(d.velocity_limit > 0,
             where + "velocity_limit must be positive (+inf for none), got " + std::to_string(d.velocity_limit));
     require(std::isfinite(d.spring_rest), where + "spring_rest must be finite");
+    require(!std::isnan(d.lower) && !std::isnan(d.upper), where + "lower and upper limits must be numbers (+-inf for none)");
     require(!(d.lower > d.upper), where + "lower limit " + std::to_string(d.lower) + " above upper " +
                                       std::to_string(d.upper));
     if (type == JointType::Free)
@@ -173,8 +174,10 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
       require(d.spring_stiffness == 0, where + "springs act on revolute and prismatic joints only");
       require(d.limit_stiffness == 0 || (std::isinf(d.lower) && std::isinf(d.upper)),
               where + "limits act on revolute and prismatic joints only");
-      require(d.friction == 0 || d.friction_model == FrictionModel::Coulomb || type == JointType::Spherical,
+      require(d.friction == 0 || type == JointType::Spherical,
               where + "friction acts on revolute, prismatic and spherical joints only");
+      require(d.friction == 0 || d.friction_model == FrictionModel::Coulomb,
+              where + "Stribeck friction acts on revolute and prismatic joints only (a spherical joint takes Coulomb)");
     }
   }
 }
@@ -358,6 +361,7 @@ std::vector<std::string> Simulator::warnings() const {
   std::vector<std::string> lines;
   for (std::string line : {describe_stiff_drives(*model_, stiff_drives(), options_.substeps), unenforced_mimics()})
     if (!line.empty()) lines.push_back(std::move(line));
+  lines.insert(lines.end(), pairs_.notes.begin(), pairs_.notes.end());
   return lines;
 }
 

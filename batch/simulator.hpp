@@ -183,7 +183,8 @@ class Simulator {
   // What the plan warns of, one line each (describe_plan indents them,
   // `lockstep rollout` prints them on stderr): the stiff drives above, and
   // the model's mimic tags, which the step does not enforce yet (each such
-  // DOF moves on its own). Empty when there is nothing to say.
+  // DOF moves on its own), and mesh shapes, which take no part in contacts
+  // (ContactPairs::notes). Empty when there is nothing to say.
   std::vector<std::string> warnings() const;
   // The constraint rows per copy (limit, velocity-limit and friction rows).
   int row_count() const;

@@ -6,6 +6,7 @@
 #include "io/json.hpp"
 #include "io/urdf_import.hpp"
 #include "layout/name_hint.hpp"
+#include "layout/rotation.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -57,9 +58,6 @@ constexpr std::uint64_t kLargestExactInteger = std::uint64_t{1} << 53;
 // A ground normal this close to unit length is kept as written, so that a
 // written scene reads back bit for bit (normalising twice can move an ulp).
 constexpr double kUnitNormalTolerance = 1e-12;
-// How far a written rotation matrix may be from orthonormal (it is used as
-// written, not re-orthonormalised).
-constexpr double kRotationTolerance = 1e-6;
 
 // ---------------------------------------------------------------------------
 // Reading.
@@ -382,8 +380,7 @@ Eigen::Matrix3d read_rotation(const json::Value& v, const At& at) {
   if (v.array.size() != 3) at.fail("expected 3 rows of 3 numbers, got " + std::to_string(v.array.size()) + " rows");
   Eigen::Matrix3d r;
   for (int i = 0; i < 3; ++i) r.row(i) = read_vector3(v.array[i], at.index(i)).transpose();
-  if (!((r.transpose() * r - Eigen::Matrix3d::Identity()).norm() <= kRotationTolerance && r.determinant() > 0))
-    at.fail("not a rotation matrix (orthonormal, determinant +1)");
+  if (!is_rotation(r)) at.fail("not a rotation matrix (orthonormal, determinant +1)");
   return r;
 }
 

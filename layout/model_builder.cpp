@@ -1,4 +1,5 @@
 #include "layout/model_builder.hpp"
+#include "layout/rotation.hpp"
 
 #include <Eigen/Eigenvalues>
 
@@ -35,14 +36,9 @@ std::string joint_ctx(const ArticulationSpec& spec, const LinkSpec& link) {
 
 bool finite(const Eigen::Isometry3d& pose) { return pose.matrix().allFinite(); }
 
-bool orthonormal(const Eigen::Isometry3d& pose) {
-  const Eigen::Matrix3d r = pose.linear();
-  return (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-6 && r.determinant() > 0.0;
-}
-
 void check_pose(const Eigen::Isometry3d& pose, const std::string& ctx, const char* what) {
   if (!finite(pose)) throw ModelError(ctx + ": " + what + " has a non-finite entry");
-  if (!orthonormal(pose)) throw ModelError(ctx + ": " + what + " rotation is not a proper rotation matrix");
+  if (!is_rotation(pose.linear())) throw ModelError(ctx + ": " + what + " rotation is not a proper rotation matrix");
 }
 
 // Minimal rotation R with R * e_z = a (a unit); rotation by pi about x for a = -z.

@@ -129,6 +129,12 @@ TEST(ContactPairs, BadSettingsAreNamed) {
   s.boxes[0].half_extents.x() = 0;
   fails(s, "boxes[0]");
   s = {};
+  s.boxes.push_back(StaticBox{});
+  s.boxes[0].pose.linear() = Eigen::Vector3d(1, 1, 2).asDiagonal();  // a scale, not a rotation
+  fails(s, "boxes[0]: pose's rotation is not a rotation matrix");
+  s.boxes[0].pose.linear() = Eigen::Vector3d(1, 1, -1).asDiagonal();  // a reflection
+  fails(s, "boxes[0]: pose's rotation is not a rotation matrix");
+  s = {};
   s.ground_normal.setZero();
   fails(s, "ground_normal");
 }
@@ -155,6 +161,9 @@ TEST(ContactPairs, MeshesAreNotedAndModelsWithoutShapesRunNoCollisionCode) {
   EXPECT_TRUE(pairs.pairs.empty());
   ASSERT_EQ(pairs.notes.size(), 1u);
   EXPECT_NE(pairs.notes[0].find("thing.stl"), std::string::npos);
+  // and the simulator's warnings (which `lockstep rollout` prints) carry it
+  const Simulator mesh_sim(mesh_model, 1, o);
+  EXPECT_EQ(mesh_sim.warnings(), pairs.notes);
 }
 
 // A box lying on the ground has 4 contact points; with capacity 2 the other

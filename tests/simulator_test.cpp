@@ -408,13 +408,17 @@ TEST(Simulator, PlanSaysMimicTagsAreNotEnforced) {
 
 TEST(Simulator, BadOptionsAreRejectedByName) {
   const Model model = spinner(0.1, -1.0, 1.0);
-  auto expect_error = [&](const StepOptions& o, std::vector<DofSettings> dofs, const std::string& piece) {
+  auto expect_error_for = [&](const Model& m, const StepOptions& o, std::vector<DofSettings> dofs,
+                              const std::string& piece) {
     try {
-      Simulator sim(model, 1, o, std::move(dofs));
+      Simulator sim(m, 1, o, std::move(dofs));
       ADD_FAILURE() << "no error for " << piece;
     } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find(piece), std::string::npos) << e.what();
     }
+  };
+  auto expect_error = [&](const StepOptions& o, std::vector<DofSettings> dofs, const std::string& piece) {
+    expect_error_for(model, o, std::move(dofs), piece);
   };
   StepOptions o;
   o.dt = 0.0;
@@ -426,15 +430,26 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
   dofs[0].drive_damping = -1.0;
   expect_error(StepOptions(), dofs, "DOF 0 (wheel_joint): drive_damping");
   expect_error(StepOptions(), std::vector<DofSettings>(3), "3 DOF settings");
+  for (const double nan_limit : {0, 1}) {  // a NaN limit is no limit: refused, not ignored
+    dofs = default_dof_settings(model);
+    (nan_limit == 0 ? dofs[0].lower : dofs[0].upper) = std::nan("");
+    expect_error(StepOptions(), dofs, "DOF 0 (wheel_joint): lower and upper limits must be numbers");
+  }
+  // joint friction: Coulomb on spherical joints, Stribeck on 1-DOF joints only
+  const Model ball = test::ball_joint();
+  std::vector<DofSettings> ball_dofs = default_dof_settings(ball);
+  ball_dofs[1].friction = 0.5;
+  EXPECT_NO_THROW(Simulator(ball, 1, StepOptions(), ball_dofs));
+  ball_dofs[1].friction_model = FrictionModel::Stribeck;
+  expect_error_for(ball, StepOptions(), ball_dofs,
+                   "DOF 1 (arm_joint[1]): Stribeck friction acts on revolute and prismatic joints");
   const Model box = free_box(Eigen::Vector3d::Constant(0.1), 1.0);
   std::vector<DofSettings> box_dofs = default_dof_settings(box);
   box_dofs[2].drive_stiffness = 1.0;
-  try {
-    Simulator sim(box, 1, StepOptions(), box_dofs);
-    ADD_FAILURE() << "a floating base took a drive";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("floating base takes no drive"), std::string::npos) << e.what();
-  }
+  expect_error_for(box, StepOptions(), box_dofs, "floating base takes no drive");
+  box_dofs = default_dof_settings(box);
+  box_dofs[0].friction = 1.0;
+  expect_error_for(box, StepOptions(), box_dofs, "friction acts on revolute, prismatic and spherical joints only");
   Simulator sim(model, 2);
   sim.set_state(0, Eigen::VectorXd::Constant(1, 0.25), Eigen::VectorXd::Constant(1, 1.0));
   try {
