@@ -135,8 +135,8 @@ struct StepProfile {
 
 // Contacts dropped for want of capacity.
 struct ContactOverflow {
-  int dropped = 0;         // in the last step
-  int overflow_steps = 0;  // steps that dropped some since the last reset
+  int dropped = 0;         // in the last step (with substeps: the most any of its pipeline runs dropped)
+  int overflow_steps = 0;  // steps that dropped some since the last reset (a step counts once)
 };
 
 class Simulator {

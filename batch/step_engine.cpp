@@ -244,7 +244,7 @@ void StepEngine<L>::step(int steps, int substeps, double dt) {
     ScratchPair& pair = *scratch_[tbb::this_task_arena::current_thread_index()];
     for (int p = range.begin(); p != range.end(); ++p)
       for (int n = 0; n < steps; ++n)
-        for (int k = 0; k < substeps; ++k) step_blocks(2 * p, std::min(2, blocks - 2 * p), h, pair.s);
+        for (int k = 0; k < substeps; ++k) step_blocks(2 * p, std::min(2, blocks - 2 * p), h, k == 0, pair.s);
   });
 }
 
@@ -297,19 +297,19 @@ void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockIn
 // (docs/performance.md), while two blocks of a large model with joint rows
 // would only crowd the cache.
 template <class L>
-void StepEngine<L>::step_blocks(int first, int count, T h, Scratch* s) {
+void StepEngine<L>::step_blocks(int first, int count, T h, bool first_run, Scratch* s) {
   begin_block(first, h, s[0]);
   const ContactScratch<L>& c = s[0].contacts;
   const bool pair = count == 2 && s[0].solving && !s[0].joint_rows_needed && c.k == 3 && c.slots <= kMaxUnrolledSlots;
   if (pair) begin_block(first + 1, h, s[1]);
   solve_blocks(s, pair ? 2 : 1, h);
-  end_block(first, h, s[0]);
+  end_block(first, h, first_run, s[0]);
   if (pair) {
-    end_block(first + 1, h, s[1]);
+    end_block(first + 1, h, first_run, s[1]);
   } else if (count == 2) {
     begin_block(first + 1, h, s[0]);
     solve_blocks(s, 1, h);
-    end_block(first + 1, h, s[0]);
+    end_block(first + 1, h, first_run, s[0]);
   }
 }
 
@@ -386,7 +386,7 @@ void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
 // The step of one block after its rows' solve: the rows' impulses applied,
 // the contacts stored, the positions integrated, the fault check.
 template <class L>
-void StepEngine<L>::end_block(int block, T h, Scratch& s) {
+void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
   StepBatch<T>& B = batch_;
   const int nq = km_.nq, nv = km_.nv;
@@ -399,7 +399,7 @@ void StepEngine<L>::end_block(int block, T h, Scratch& s) {
     if (!floating_roots_.empty()) linear_momentum_target(block, h, s);
     if (!contact_pairs_.empty())
       store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
-                        contact_arrays(block));
+                        contact_arrays(block), first_run);
     s.clock.lap(&StepProfile::constraint_solve);
     T* velocity = fields(s.qacc);  // free again: the position velocity
     const T step = position_velocity(s, h, velocity);

@@ -146,9 +146,10 @@ class StepEngine final : public Simulator::Engine {
   // Mt's factors for the rows (ltdl_factor_from_aba's or CRBA's)
   static T* factors(Scratch& s) { return reinterpret_cast<T*>(s.ws.matrix.data()); }
   static const T* factors(const Scratch& s) { return reinterpret_cast<const T*>(s.ws.matrix.data()); }
-  void step_blocks(int first, int count, T h, Scratch* s);
+  // first_run: the first of the step's pipeline runs (StepOptions::substeps)
+  void step_blocks(int first, int count, T h, bool first_run, Scratch* s);
   void begin_block(int block, T h, Scratch& s);
-  void end_block(int block, T h, Scratch& s);
+  void end_block(int block, T h, bool first_run, Scratch& s);
   T gyroscopic_weight(T h) const;
   // ABA with the joint effects at (q, v): s.qacc. Needs nothing prepared.
   void free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,

@@ -101,7 +101,7 @@ struct ContactArrays {
   T* normal;      // (capacity x 3) world, from A to B
   T* separation;  // (capacity)
   T* count;       // (1) contacts kept (at most capacity)
-  T* dropped;     // (1) contacts found beyond capacity this step
+  T* dropped;     // (1) contacts found beyond capacity this step (its largest pipeline run's)
   T* overflow_steps;  // (1) steps with dropped contacts, since the last reset
 };
 
@@ -515,10 +515,13 @@ void add_contact_impulses(const KernelModel<lane::scalar_t<L>>& km, const lane::
 // the counts into the copies' arrays. A slot whose id is -1 is empty, its
 // other entries unspecified (nothing reads them): a slot no lane used this
 // step is written empty only where some lane's id is not -1 yet, so that a
-// copy's unused slots do not stream through memory every step.
+// copy's unused slots do not stream through memory every step. A step of
+// several pipeline runs (StepOptions::substeps) reports the most contacts
+// any of its runs dropped, and counts as one overflow step: first_run
+// starts the step's count.
 template <class L>
 void store_contacts(const ContactScratch<L>& s, const L* x, const lane::mask_t<L>& rest,
-                    const ContactArrays<lane::scalar_t<L>>& arrays) {
+                    const ContactArrays<lane::scalar_t<L>>& arrays, bool first_run) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   const int k = s.k;
@@ -540,10 +543,11 @@ void store_contacts(const ContactScratch<L>& s, const L* x, const lane::mask_t<L
     lane::store(e[6], arrays.separation + c * W);
   }
   const L dropped = lane::max(s.count - capacity, zero);
+  const L dropped_before = first_run ? zero : lane::load<L>(arrays.dropped);  // by this step's earlier runs
   lane::store(lane::min(s.count, capacity), arrays.count);
-  lane::store(dropped, arrays.dropped);
+  lane::store(lane::max(dropped, dropped_before), arrays.dropped);
   const L steps = lane::load<L>(arrays.overflow_steps);
-  lane::store(lane::select(dropped > zero, steps + L(T(1)), steps), arrays.overflow_steps);
+  lane::store(lane::select(dropped > zero && dropped_before == zero, steps + L(T(1)), steps), arrays.overflow_steps);
 }
 
 }  // namespace lockstep

@@ -168,20 +168,26 @@ TEST(ContactPairs, MeshesAreNotedAndModelsWithoutShapesRunNoCollisionCode) {
 
 // A box lying on the ground has 4 contact points; with capacity 2 the other
 // two are dropped, counted per step and per copy, and the box still rests.
+// A step of 4 pipeline runs (substeps) counts once, its drop not summed.
 TEST(ContactPairs, OverflowIsCountedPerCopy) {
   const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0);
-  StepOptions o;
-  o.contacts.ground = true;
-  o.contacts.capacity = 2;
-  Simulator sim(model, 3, o);
-  for (int c = 0; c < 3; ++c) sim.set_state(c, free_pose(Eigen::Vector3d(0, 0, c == 1 ? 1.0 : 0.1)), Eigen::VectorXd::Zero(6));
-  sim.step(5);
-  EXPECT_EQ(sim.contact_overflow(0).dropped, 2);
-  EXPECT_EQ(sim.contact_overflow(0).overflow_steps, 5);
-  EXPECT_EQ(sim.contact_overflow(1).dropped, 0) << "copy 1 is in the air";
-  EXPECT_EQ(sim.contacts(0).size(), 2u);
-  sim.reset(0);
-  EXPECT_EQ(sim.contact_overflow(0).overflow_steps, 0);
+  for (const int substeps : {1, 4}) {
+    StepOptions o;
+    o.contacts.ground = true;
+    o.contacts.capacity = 2;
+    o.substeps = substeps;
+    Simulator sim(model, 3, o);
+    for (int c = 0; c < 3; ++c)
+      sim.set_state(c, free_pose(Eigen::Vector3d(0, 0, c == 1 ? 1.0 : 0.1)), Eigen::VectorXd::Zero(6));
+    sim.step(5);
+    EXPECT_EQ(sim.contact_overflow(0).dropped, 2) << substeps << " substeps";
+    EXPECT_EQ(sim.contact_overflow(0).overflow_steps, 5) << substeps << " substeps";
+    EXPECT_EQ(sim.contact_overflow(1).dropped, 0) << "copy 1 is in the air";
+    EXPECT_EQ(sim.contact_overflow(1).overflow_steps, 0) << "copy 1 is in the air";
+    EXPECT_EQ(sim.contacts(0).size(), 2u);
+    sim.reset(0);
+    EXPECT_EQ(sim.contact_overflow(0).overflow_steps, 0);
+  }
 }
 
 // Contact forces per contact and per body: a 2 kg ball resting on the
