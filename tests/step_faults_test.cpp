@@ -4,8 +4,9 @@
 // as in a run where that copy's inputs were clean. With reset_on_fault the
 // copy is put back at its initial state with no warm start; clear_fault and
 // reset undo a fault by hand. anymal_b floating, float and double, PGS and
-// TGS, in a scene whose rows push (narrow limits, friction) and in one where
-// they never do (so the solver is skipped in clean blocks).
+// TGS, in a scene whose rows push (narrow limits, friction), the same on the
+// ground (contacts, whose detection decides per block what any lane needs),
+// and in one where they never do (so the solver is skipped in clean blocks).
 #include "tests/sim_support.hpp"
 
 #include <functional>
@@ -86,21 +87,24 @@ void restore_inputs(Simulator& sim, int c, const CopyInputs& in) {
 
 struct Case {
   bool rows_push;  // narrow limits and friction; else wide limits, no friction
+  bool ground;     // contacts with the ground plane at z = 0
   Precision precision;
   SolverType solver;
 };
 
 std::string case_name(const ::testing::TestParamInfo<Case>& info) {
   const Case& c = info.param;
-  return std::string(c.rows_push ? "rows_push_" : "rows_at_rest_") + precision_name(c.precision) + "_" +
-         solver_name(c.solver);
+  return std::string(c.rows_push ? "rows_push_" : "rows_at_rest_") + (c.ground ? "ground_" : "") +
+         precision_name(c.precision) + "_" + solver_name(c.solver);
 }
 
 std::vector<Case> all_cases() {
   std::vector<Case> cases;
   for (bool rows_push : {true, false})
-    for (Precision precision : {Precision::Float, Precision::Double})
-      for (SolverType solver : {SolverType::PGS, SolverType::TGS}) cases.push_back({rows_push, precision, solver});
+    for (bool ground : {false, true})
+      for (Precision precision : {Precision::Float, Precision::Double})
+        for (SolverType solver : {SolverType::PGS, SolverType::TGS})
+          if (rows_push || !ground) cases.push_back({rows_push, ground, precision, solver});
   return cases;
 }
 
@@ -120,6 +124,7 @@ class StepFaults : public ::testing::TestWithParam<Case> {
   StepOptions options(bool reset_on_fault) const {
     StepOptions o = test::scene_options(GetParam().precision, GetParam().solver);
     o.reset_on_fault = reset_on_fault;
+    o.contacts.ground = GetParam().ground;
     return o;
   }
 
@@ -141,6 +146,10 @@ class StepFaults : public ::testing::TestWithParam<Case> {
     EXPECT_EQ(clean.fault_count(), 0);
     if (GetParam().rows_push) EXPECT_GT(test::copies_with_impulses(clean), 0);
     else EXPECT_EQ(test::copies_with_impulses(clean), 0);
+    int touching = 0;
+    for (int c = 0; c < clean.copies(); ++c) touching += !clean.contacts(c).empty();
+    if (GetParam().ground) EXPECT_GT(touching, 0) << "copies on the ground";
+    if (GetParam().ground) EXPECT_LT(touching, clean.copies()) << "copies in the air";
     return clean;
   }
 
