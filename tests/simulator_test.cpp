@@ -338,6 +338,15 @@ TEST(Simulator, UrdfValuesAreTheDefaults) {
     EXPECT_EQ(ur5_dofs[k].friction, ur5.dof_friction[k]);
     EXPECT_EQ(ur5_dofs[k].max_force, ur5.dof_effort_limit[k]);
   }
+  // ur5's URDF writes zero damping and friction: the written values, from a
+  // hand whose <dynamics> are not zero (joint_0.0: damping 3, friction 10)
+  const Model hand = test::load_shared_model("allegro_right_hand", false);
+  const DofSettings first = default_dof_settings(hand)[hand.dof_index("joint_0.0")];
+  EXPECT_EQ(first.damping, 3.0);
+  EXPECT_EQ(first.friction, 10.0);
+  EXPECT_EQ(first.max_force, 15.0);
+  EXPECT_EQ(first.velocity_limit, 7.0);
+  EXPECT_EQ(first.upper, 0.47);
 }
 
 // substeps = n runs the pipeline n times with dt / n: the same bits as n
