@@ -1,11 +1,11 @@
 // Contacts over one block: the narrowphase of every candidate pair, the
 // points compacted per lane into a fixed number of contact slots, and each
 // slot's solver rows (docs/contacts.md):
-//   normal   n . (v_B - v_A) at the point, lambda >= 0, positional (the
-//            separation e is its error: speculative -e/h while apart, a
-//            share of the penetration per step when rigid, the
-//            spring-damper law when compliant; restitution lifts the
-//            target to the bounce speed);
+//   normal   n . (v_B - v_A) at the point, lambda >= 0; the separation e
+//            is its error: speculative -e/h while apart, a share of the
+//            penetration per step when rigid (a positional row: TGS
+//            advances e through its substeps), the spring-damper law when
+//            compliant; restitution lifts the target to the bounce speed;
 //   friction t1 and t2, a cone pair |lambda_t| <= mu lambda_n;
 //   torsion  n . (w_B - w_A), |lambda| <= torsional * lambda_n (optional).
 // A slot holds, per lane, the lane's c-th contact; lanes with fewer contacts
@@ -315,7 +315,10 @@ void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const Contact
     rows.target[r] = rows.target_hi[r] = lane::max(lane::min(positional_target(e, inv_h, rate), rows.ceiling[r]), floor);
     rows.lo[r] = zero;
     rows.hi[r] = lane::select(active, L(inf), zero);
-    rows.positional[r] = 1;
+    // a compliant row's spring-damper law is implicit over the step already
+    // (the k h in its rate and compliance): TGS keeps its target through the
+    // substeps, as PGS does, instead of advancing its error a second time
+    rows.positional[r] = p.stiffness > 0 ? 0 : 1;
     rows.bound_row[r] = -1;
     rows.cone[r] = 0;
     for (int i = 1; i < k; ++i) {

@@ -24,7 +24,17 @@ StepOptions contact_options(Precision precision, SolverType solver = SolverType:
 // The lowest point of a sphere of radius r above the plane z = 0.
 double sphere_gap(const Simulator& sim, int copy, double r) { return sim.q(copy)[2] - r; }
 
-class ContactPrecision : public ::testing::TestWithParam<Precision> {};
+// Each contact case in float and double, with PGS and with TGS.
+struct PrecisionAndSolver {
+  Precision precision;
+  SolverType solver;
+};
+
+class ContactPrecision : public ::testing::TestWithParam<PrecisionAndSolver> {
+ protected:
+  static Precision precision() { return GetParam().precision; }
+  static StepOptions options() { return contact_options(GetParam().precision, GetParam().solver); }
+};
 
 // A ball dropped from 0.5 m comes to rest on the ground: after 1 s it
 // penetrates less than 1 mm and moves slower than 1e-3 m/s, and it keeps
@@ -33,7 +43,7 @@ class ContactPrecision : public ::testing::TestWithParam<Precision> {};
 TEST_P(ContactPrecision, DroppedSphereComesToRest) {
   const double r = 0.1;
   const Model model = single_body(ShapeType::Sphere, Eigen::Vector3d(r, 0, 0), 1.0);
-  Simulator sim(model, 1, contact_options(GetParam()));
+  Simulator sim(model, 1, options());
   sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, 0.5 + r)), Eigen::VectorXd::Zero(6));
   sim.step(500);
   EXPECT_GT(sphere_gap(sim, 0, r), -1e-3);
@@ -51,6 +61,55 @@ TEST_P(ContactPrecision, DroppedSphereComesToRest) {
   EXPECT_NEAR(sim.contacts(0)[0].force.z(), 9.81, 1e-3 * 9.81);
 }
 
+// A compliant contact (stiffness k, critical damping c = 2 sqrt(k m))
+// holds a 1 kg ball at the depth where the spring carries its weight,
+// m g / k = 0.981 mm for k = 1e4 N/m: the row's compliance 1 / (h (k h + c))
+// makes its resting impulse -e k h, so the depth is exact up to rounding
+// (asserted within 1 %; float's ulp at 0.1 m is 7e-9 m, 1e-5 of the depth).
+TEST_P(ContactPrecision, CompliantContactRestsAtItsSpringDepth) {
+  const double r = 0.1, m = 1.0, k = 1e4, g = 9.81;
+  const Model model = single_body(ShapeType::Sphere, Eigen::Vector3d(r, 0, 0), m);
+  StepOptions o = options();
+  o.contacts.stiffness = k;
+  o.contacts.damping = 2 * std::sqrt(k * m);
+  Simulator sim(model, 1, o);
+  sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, r + 0.05)), Eigen::VectorXd::Zero(6));
+  sim.step(1000);
+  EXPECT_NEAR(-sphere_gap(sim, 0, r), m * g / k, 0.01 * m * g / k);
+  EXPECT_LT(sim.v(0).norm(), 1e-4);
+  ASSERT_EQ(sim.contacts(0).size(), 1u);
+  EXPECT_NEAR(sim.contacts(0)[0].force.z(), m * g, 1e-3 * m * g);
+}
+
+// Torsional friction (torsional_friction t, in m) stops a ball spinning
+// about the ground's normal with the torque t m g: for a 1 kg ball of
+// radius 0.1 m (I = 0.4 m r^2 = 0.004 kg m^2) and t = 0.01 m, a constant
+// deceleration of 24.5 rad/s^2, from 10 rad/s to 5.10 rad/s at 0.2 s
+// (asserted within 2 %: the semi-implicit Euler velocity is exact for a
+// constant torque), at rest from 0.41 s on (it stops, and does not turn
+// back: asserted at 0.5 s). Its
+// contact point lies on the spin axis, so sliding friction does not act:
+// without torsional friction the ball keeps spinning.
+TEST_P(ContactPrecision, TorsionalFrictionStopsASpinningBall) {
+  const double r = 0.1, m = 1.0, g = 9.81, omega = 10.0;
+  const Model model = single_body(ShapeType::Sphere, Eigen::Vector3d(r, 0, 0), m);
+  for (const double torsional : {0.0, 0.01}) {
+    StepOptions o = options();
+    o.contacts.torsional_friction = torsional;
+    Simulator sim(model, 1, o);
+    Eigen::VectorXd v = Eigen::VectorXd::Zero(6);
+    v[5] = omega;  // about z
+    sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, r)), v);
+    const int steps = static_cast<int>(std::lround(0.2 / o.dt));
+    sim.step(steps);
+    const double expected = torsional > 0 ? omega - torsional * m * g / (0.4 * m * r * r) * 0.2 : omega;
+    EXPECT_NEAR(sim.v(0)[5], expected, 0.02 * expected) << "torsional friction " << torsional;
+    sim.step(static_cast<int>(std::lround(0.3 / o.dt)));
+    if (torsional > 0) EXPECT_LT(std::abs(sim.v(0)[5]), 1e-3) << "at rest at 0.5 s";
+    EXPECT_LT(sim.v(0).head<3>().norm(), 1e-3) << "the ball stays where it is";
+  }
+}
+
 // A 0.2 m cube on a plane tilted by theta, mu = 0.5 on both surfaces.
 // tan(20 deg) = 0.36 < mu: it sticks (it creeps less than 0.1 mm in 1 s);
 // tan(35 deg) = 0.70 > mu: it slides with g (sin - mu cos) within 2 % (the
@@ -61,7 +120,7 @@ TEST_P(ContactPrecision, BoxOnInclineSticksOrSlides) {
   for (double degrees : {20.0, 35.0}) {
     const double theta = degrees * kPi / 180;
     const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(half), 1.0);
-    StepOptions o = contact_options(GetParam());
+    StepOptions o = options();
     o.contacts.ground_normal = Eigen::Vector3d(std::sin(theta), 0, std::cos(theta));
     o.contacts.ground_contact.friction = mu;
     o.contacts.shapes = {ShapeContact{mu, 0.0}};
@@ -88,7 +147,7 @@ TEST_P(ContactPrecision, BoxOnInclineSticksOrSlides) {
 TEST_P(ContactPrecision, RestitutionBouncesToAQuarterHeight) {
   const double r = 0.1, drop = 1.0;
   const Model model = single_body(ShapeType::Sphere, Eigen::Vector3d(r, 0, 0), 1.0);
-  StepOptions o = contact_options(GetParam());
+  StepOptions o = options();
   o.contacts.ground_contact.restitution = 0.5;
   o.contacts.shapes = {ShapeContact{1.0, 0.5}};
   Simulator sim(model, 1, o);
@@ -117,7 +176,7 @@ TEST_P(ContactPrecision, RestitutionBouncesToAQuarterHeight) {
 TEST_P(ContactPrecision, DepenetrationIsCappedAndNothingFlies) {
   const Model box = single_body(ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0);
   auto fastest_rise = [&](double cap, double& final_gap) {
-    StepOptions o = contact_options(GetParam());
+    StepOptions o = options();
     o.contacts.max_depenetration_speed = cap;
     Simulator sim(box, 1, o);
     sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, 0.05)), Eigen::VectorXd::Zero(6));
@@ -141,7 +200,7 @@ TEST_P(ContactPrecision, DepenetrationIsCappedAndNothingFlies) {
   const Model anymal = load_urdf(shared_model_path("anymal_b"), floating);
   std::vector<DofSettings> dofs = default_dof_settings(anymal);
   for (int k = 6; k < anymal.nv; ++k) dofs[k].drive_stiffness = 300, dofs[k].drive_damping = 8;
-  Simulator sim(anymal, 1, contact_options(GetParam()), dofs);
+  Simulator sim(anymal, 1, options(), dofs);
   const Eigen::VectorXd target = stance(anymal);
   Eigen::VectorXd q = target;
   q[2] -= 0.05;
@@ -190,8 +249,8 @@ struct BallAndRobot {
   Model model;
   Simulator sim;
   CopyDynamics dynamics;
-  BallAndRobot(Precision precision, double dt, bool conserve = false)
-      : model(build()), sim(model, 1, options(precision, dt, conserve)), dynamics(model) {
+  BallAndRobot(Precision precision, double dt, bool conserve = false, SolverType solver = SolverType::PGS)
+      : model(build()), sim(model, 1, options(precision, solver, dt, conserve)), dynamics(model) {
     Eigen::VectorXd q = model.neutral_configuration(), v = Eigen::VectorXd::Zero(model.nv);
     const int ball = model.joint_index("ball_root");
     q.segment<3>(model.body_q_offset[ball]) = Eigen::Vector3d(0.6, 0.0, 0.0);  // in front of the base
@@ -207,8 +266,8 @@ struct BallAndRobot {
     builder.add_articulation(free_shape_spec("ball", ShapeType::Sphere, Eigen::Vector3d(0.1, 0, 0), 2.0));
     return builder.finalize();
   }
-  static StepOptions options(Precision precision, double dt, bool conserve) {
-    StepOptions o = contact_options(precision);
+  static StepOptions options(Precision precision, SolverType solver, double dt, bool conserve) {
+    StepOptions o = contact_options(precision, solver);
     o.contacts.ground = false;
     o.dt = dt;
     o.conserve_linear_momentum = conserve;
@@ -223,7 +282,7 @@ struct BallAndRobot {
 };
 
 TEST_P(ContactPrecision, CollisionImpulsesKeepLinearMomentum) {
-  BallAndRobot scene(GetParam(), 2e-3);
+  BallAndRobot scene(precision(), 2e-3, false, GetParam().solver);
   const Model& model = scene.model;
   Simulator& sim = scene.sim;
   auto momentum = [&](const Eigen::VectorXd& at, const Eigen::VectorXd& velocity) {
@@ -236,7 +295,7 @@ TEST_P(ContactPrecision, CollisionImpulsesKeepLinearMomentum) {
     for (const Contact& c : sim.contacts(0)) hit = hit || c.force.norm() > 0;
     if (!hit) continue;
     const Eigen::Vector3d p0 = momentum(q0, v0), p1 = momentum(q0, start_frame_velocity(model, q0, sim.q(0), sim.v(0)));
-    const double tolerance = GetParam() == Precision::Double ? 1e-6 : 1e-5;
+    const double tolerance = precision() == Precision::Double ? 1e-6 : 1e-5;
     EXPECT_LT((p1 - p0).norm(), tolerance * p0.norm());
     EXPECT_GT((sim.v(0) - v0).norm(), 0.1) << "the impact changes the velocities";
   }
@@ -273,12 +332,12 @@ TEST(ContactMomentum, CollisionMomentumDriftIsFirstOrderInDt) {
 // The same collision with StepOptions::conserve_linear_momentum: each
 // articulation's momentum after a step is its momentum before plus the
 // impulses on it, so the total is kept to rounding. Measured over 0.3 s at
-// dt = 2 ms: 5.0e-15 of |p0| in double, 4.6e-6 in float (without the
-// projection 5.4e-4, above). Asserted: 1e-6 in double (the bound),
+// dt = 2 ms: 3.1e-15 of |p0| in double, 4.0e-6 in float with PGS, 4.1e-15
+// and 4.7e-6 with TGS (without the projection 5.4e-4, above). Asserted: 1e-6 in double (the bound),
 // and in float 2e-5: 150 steps of float rounding (6e-8) of momenta that sum
 // to about twice |p0| over 14 bodies, if every step's added up.
 TEST_P(ContactPrecision, ProjectionKeepsMomentumOverTheWholeCollision) {
-  BallAndRobot scene(GetParam(), 2e-3, true);
+  BallAndRobot scene(precision(), 2e-3, true, GetParam().solver);
   const Eigen::Vector3d p0 = scene.momentum(scene.sim.q(0), scene.sim.v(0));
   bool hit = false;
   double worst = 0;
@@ -290,13 +349,20 @@ TEST_P(ContactPrecision, ProjectionKeepsMomentumOverTheWholeCollision) {
   EXPECT_TRUE(hit) << "the ball never reached the robot";
   const Eigen::VectorXd v = scene.sim.v(0);
   EXPECT_GT(v.segment(6, scene.model.nv - 12).norm(), 0.1) << "the legs move after the hit";
-  std::cout << "[ measured ] momentum drift over the collision with the projection (" << precision_name(GetParam())
-            << "): " << worst << "\n";
-  EXPECT_LT(worst, GetParam() == Precision::Double ? 1e-6 : 2e-5);
+  std::cout << "[ measured ] momentum drift over the collision with the projection (" << precision_name(precision())
+            << ", " << solver_name(GetParam().solver) << "): " << worst << "\n";
+  EXPECT_LT(worst, precision() == Precision::Double ? 1e-6 : 2e-5);
 }
 
-INSTANTIATE_TEST_SUITE_P(, ContactPrecision, ::testing::Values(Precision::Float, Precision::Double),
-                         [](const auto& info) { return std::string(precision_name(info.param)); });
+INSTANTIATE_TEST_SUITE_P(, ContactPrecision,
+                         ::testing::Values(PrecisionAndSolver{Precision::Float, SolverType::PGS},
+                                           PrecisionAndSolver{Precision::Double, SolverType::PGS},
+                                           PrecisionAndSolver{Precision::Float, SolverType::TGS},
+                                           PrecisionAndSolver{Precision::Double, SolverType::TGS}),
+                         [](const auto& info) {
+                           return std::string(precision_name(info.param.precision)) + "_" +
+                                  solver_name(info.param.solver);
+                         });
 
 // A joint limit that only a contact's impulse reaches within the step: a
 // flap on a vertical hinge at rest, 1e-3 rad short of its upper limit, its
