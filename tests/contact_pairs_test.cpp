@@ -73,6 +73,53 @@ TEST(ContactPairs, SelfCollisionSkipsAdjacentFusedAndShapelessLinks) {
   EXPECT_TRUE(pair_names(chain(false), s).empty());
 }
 
+// In the step: drives (kp 50, kd 3; no gravity) hold joints a, c and d at 0
+// and fold joint b from 1.7 rad towards 3.0 rad, where c's sphere would lie
+// 1.4 cm from a's; the spheres (radius 3 cm each) meet at 6 cm, b at 2.53
+// rad. With self-collision on the pair's contact stops the fold there (less
+// than 1 mm deeper); off, c passes into a (to 2 cm and less). PGS and TGS,
+// float and double.
+TEST(ContactPairs, SelfCollisionStopsAFoldingChain) {
+  const Model model = chain(false);
+  const CopyDynamics dynamics(model);
+  const int a = model.frame_index("a"), c = model.frame_index("c");
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (DofSettings& d : dofs) d.drive_stiffness = 50, d.drive_damping = 3;
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(model.nq), target = q;
+  q[1] = 1.7;  // a and c 13 cm apart
+  target[1] = 3.0;
+  for (const Precision precision : {Precision::Float, Precision::Double})
+    for (const SolverType solver : {SolverType::PGS, SolverType::TGS})
+      for (const bool self : {true, false}) {
+        StepOptions o;
+        o.precision = precision;
+        o.solver = solver;
+        o.contacts.self_collision = {self};
+        Simulator sim(model, 1, o, dofs);
+        sim.set_gravity(0, Eigen::Vector3d::Zero());
+        sim.set_state(0, q, Eigen::VectorXd::Zero(model.nv));
+        sim.set_drive_target(0, target, Eigen::VectorXd::Zero(model.nv));
+        double closest = 1.0;
+        int touching = 0;
+        for (int i = 0; i < 500; ++i) {  // 1 s
+          sim.step();
+          const std::vector<Eigen::Isometry3d> poses = dynamics.frame_poses(sim.q(0));
+          closest = std::min(closest, (poses[a].translation() - poses[c].translation()).norm());
+          touching += !sim.contacts(0).empty();
+        }
+        const std::string what = std::string(precision_name(precision)) + " " + solver_name(solver) +
+                                 (self ? ", self-collision on" : ", off");
+        EXPECT_EQ(sim.fault(0), Fault::None) << what;
+        if (self) {
+          EXPECT_GT(closest, 0.06 - 1e-3) << what;
+          EXPECT_GT(touching, 0) << what;
+        } else {
+          EXPECT_LT(closest, 0.02) << what;
+          EXPECT_EQ(touching, 0) << what;
+        }
+      }
+}
+
 // Every candidate number names the pair whose narrowphase makes it: the
 // pairs' ranges [first_candidate, next pair's) tile [0, candidates).
 TEST(ContactPairs, CandidateNumbersMapToTheirPair) {
@@ -222,6 +269,39 @@ TEST(ContactPairs, GroundDiffersPerCopy) {
   EXPECT_NEAR(sim.q(1)[2], 0.6, 1e-3);
   Simulator no_ground(model, 1);
   expect_invalid([&] { no_ground.set_ground(0, 0.0, Eigen::Vector3d::UnitZ(), 1.0); }, "no ground");
+}
+
+// Tilt and friction per copy too: a 0.2 m cube (friction 0.5) on three
+// copies' grounds, each pair's mu the mean of the two: flat; tilted 35
+// degrees with ground friction 0.5 (mu 0.5 < tan 35 = 0.70: it slides at
+// g (sin - mu cos) within 2 %, as in ContactPrecision.BoxOnInclineSticksOrSlides);
+// tilted 35 degrees with ground friction 1.5 (mu 1.0: it sticks, less than
+// 0.1 mm in 1 s). One block: the copies differ lane by lane.
+TEST(ContactPairs, GroundTiltAndFrictionDifferPerCopy) {
+  const double half = 0.1, g = 9.81, theta = 35 * 3.14159265358979323846 / 180;
+  const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(half), 1.0);
+  for (const Precision precision : {Precision::Float, Precision::Double}) {
+    StepOptions o;
+    o.precision = precision;
+    o.contacts.ground = true;
+    o.contacts.shapes = {ShapeContact{0.5, 0.0}};
+    Simulator sim(model, 3, o);
+    const Eigen::Vector3d tilted(std::sin(theta), 0, std::cos(theta));
+    const Eigen::Quaterniond tilt(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitY()));
+    sim.set_ground(0, 0.0, Eigen::Vector3d::UnitZ(), 0.5);
+    sim.set_ground(1, 0.0, tilted, 0.5);
+    sim.set_ground(2, 0.0, tilted, 1.5);
+    sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, half)), Eigen::VectorXd::Zero(6));
+    for (int c = 1; c < 3; ++c) sim.set_state(c, free_pose(half * tilted, tilt), Eigen::VectorXd::Zero(6));
+    sim.step(500);  // 1 s
+    const Eigen::Vector3d downhill(std::cos(theta), 0, -std::sin(theta));
+    auto travelled = [&](int c, const Eigen::Vector3d& start) { return (sim.q(c).head<3>() - start).dot(downhill); };
+    const double sliding = g * (std::sin(theta) - 0.5 * std::cos(theta));
+    const std::string what = precision_name(precision);
+    EXPECT_LT((sim.q(0).head<3>() - Eigen::Vector3d(0, 0, half)).norm(), 1e-4) << what << ": flat";
+    EXPECT_NEAR(2 * travelled(1, half * tilted), sliding, 0.02 * sliding) << what << ": mu 0.5 slides";
+    EXPECT_LT(std::abs(travelled(2, half * tilted)), 1e-4) << what << ": mu 1.0 sticks";
+  }
 }
 
 }  // namespace
