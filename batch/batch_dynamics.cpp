@@ -39,6 +39,17 @@ void BatchDynamics<L>::frame_poses(const BatchState<Scalar>& s, BatchArray<Scala
 }
 
 template <class L>
+void BatchDynamics<L>::frame_velocities(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(out, s.copies(), 6 * km_.nframe, "frame_velocities");
+  for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
+    joint_transforms<L>(km_, s.q.block(b), ws);
+    world_transforms<L>(km_, ws);
+    body_velocities<L>(km_, s.v.block(b), ws);
+    lockstep::frame_velocities<L>(km_, ws, out.block(b));
+  });
+}
+
+template <class L>
 void BatchDynamics<L>::body_poses(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
   check(out, s.copies(), 12 * km_.nbody, "body_poses");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {

@@ -45,6 +45,9 @@ class BatchDynamics {
   void frame_poses(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
   // (nbody x 12) world pose of every body, same layout.
   void body_poses(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
+  // (nframe x 6) spatial velocity of every frame at s.q, s.v, world axes:
+  // [v; w], v the velocity of the frame's origin (point_jacobian's rows).
+  void frame_velocities(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
   // (nv) ABA: joint accelerations from s.q, s.v, s.tau, s.wrench, s.gravity.
   void forward_dynamics(const BatchState<Scalar>& s, BatchArray<Scalar>& qacc) const;
   // (nv) RNEA: joint forces for s.q, s.v, s.qacc, s.wrench, s.gravity.

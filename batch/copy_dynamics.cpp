@@ -140,6 +140,11 @@ std::vector<Eigen::Isometry3d> CopyDynamics::frame_poses(const Eigen::VectorXd& 
 std::vector<Eigen::Isometry3d> CopyDynamics::body_poses(const Eigen::VectorXd& q) const {
   return poses(evaluate({&q}, LOCKSTEP_BATCH_METHOD(body_poses), 12 * model_->nbody));
 }
+Eigen::MatrixXd CopyDynamics::frame_velocities(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const {
+  const int frames = static_cast<int>(model_->frame_name.size());
+  return Eigen::Map<const Eigen::MatrixXd>(evaluate({&q, &v}, LOCKSTEP_BATCH_METHOD(frame_velocities), 6 * frames).data(),
+                                           6, frames);
+}
 Eigen::MatrixXd CopyDynamics::mass_matrix(const Eigen::VectorXd& q) const {
   const int n = model_->nv;
   return row_major(evaluate({&q}, LOCKSTEP_BATCH_METHOD(mass_matrix), n * n), n, n);

@@ -31,6 +31,9 @@ class CopyDynamics {
   std::vector<Eigen::Isometry3d> frame_poses(const Eigen::VectorXd& q) const;
   // World pose of every body, indexed like model.body_parent.
   std::vector<Eigen::Isometry3d> body_poses(const Eigen::VectorXd& q) const;
+  // (6 x nframe) spatial velocity of every frame, world axes: column f is
+  // [v; w], v the velocity of frame f's origin, w its angular velocity.
+  Eigen::MatrixXd frame_velocities(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const;
 
   Eigen::MatrixXd mass_matrix(const Eigen::VectorXd& q) const;                 // CRBA, armature included
   Eigen::MatrixXd inverse_mass_matrix(const Eigen::VectorXd& q) const;

@@ -24,6 +24,8 @@
                                            lane::scalar_t<L>*);                                                       \
   EXTERN template void body_velocities<L>(const KernelModel<lane::scalar_t<L>>&, const lane::scalar_t<L>*,          \
                                           Workspace<L>&);                                                             \
+  EXTERN template void frame_velocities<L>(const KernelModel<lane::scalar_t<L>>&, const Workspace<L>&,              \
+                                           lane::scalar_t<L>*);                                                       \
   EXTERN template void rnea<L>(const KernelModel<lane::scalar_t<L>>&, const BlockInputs<lane::scalar_t<L>>&,        \
                                Workspace<L>&, lane::scalar_t<L>*);                                                    \
   EXTERN template void aba<L>(const KernelModel<lane::scalar_t<L>>&, const BlockInputs<lane::scalar_t<L>>&,         \

@@ -126,4 +126,31 @@ void body_velocities(const KernelModel<lane::scalar_t<L>>& km, const lane::scala
   }
 }
 
+// Spatial velocity of every frame (URDF link), world axes, 6 values per
+// frame: [v; w], v the velocity of the frame's origin and w the angular
+// velocity (the rows of point_jacobian at the origin: the same as
+// point_jacobian(frame, 0) qd). With the body's velocity (w_b, v_b) in its
+// own coordinates and the frame's origin at p_f there,
+// v = R_b (v_b + w_b x p_f), w = R_b w_b. Needs ws.world and ws.velocity.
+template <class L>
+void frame_velocities(const KernelModel<lane::scalar_t<L>>& km, const Workspace<L>& ws,
+                      lane::scalar_t<L>* frame_out) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  for (int f = 0; f < km.nframe; ++f) {
+    const int body = km.frame_body[f];
+    T* out = frame_out + 6 * f * W;
+    Vec3<L> v = {L(T(0)), L(T(0)), L(T(0))}, w = v;
+    if (body >= 0) {
+      const T* placement = &km.frame_placement[12 * f];
+      const Vec3<L> origin = {L(placement[9]), L(placement[10]), L(placement[11])};
+      const Vec3<L> w_body = ws.velocity[body].ang();
+      v = spatial::rotate(ws.world[body].R, spatial::add(ws.velocity[body].lin(), spatial::cross(w_body, origin)));
+      w = spatial::rotate(ws.world[body].R, w_body);
+    }
+    const L e[6] = {v.x, v.y, v.z, w.x, w.y, w.z};
+    for (int k = 0; k < 6; ++k) lane::store(e[k], out + k * W);
+  }
+}
+
 }  // namespace lockstep

@@ -19,6 +19,14 @@ namespace {
 constexpr double kStep = 1e-5;
 constexpr double kDifferenceTolerance = 1e-6;
 
+// The angular velocity that turns `minus` into `plus` over 2 kStep (central
+// difference): the axial vector of (dR/dt) R^T.
+Eigen::Vector3d angular_velocity_fd(const Eigen::Isometry3d& plus, const Eigen::Isometry3d& minus) {
+  const Eigen::Matrix3d dR = (plus.linear() - minus.linear()) / (2 * kStep);
+  const Eigen::Matrix3d W = dR * plus.linear().transpose();  // [w]x to first order
+  return 0.5 * Eigen::Vector3d(W(2, 1) - W(1, 2), W(0, 2) - W(2, 0), W(1, 0) - W(0, 1));
+}
+
 class Utilities : public test::ModelCaseTest {
  protected:
   std::mt19937 rng_{5};
@@ -46,12 +54,10 @@ TEST_P(Utilities, JacobiansMatchFiniteDifferencesOfKinematics) {
   for (int b = 0; b < model_.nbody; ++b) {
     const Eigen::Vector3d com_plus = plus[b] * model_.body_com[b], com_minus = minus[b] * model_.body_com[b];
     const Eigen::Vector3d v_fd = (com_plus - com_minus) / (2 * kStep);
-    const Eigen::Matrix3d dR = (plus[b].linear() - minus[b].linear()) / (2 * kStep);
-    const Eigen::Matrix3d W = dR * plus[b].linear().transpose();  // [w]x to first order
-    const Eigen::Vector3d w_fd(W(2, 1) - W(1, 2), W(0, 2) - W(2, 0), W(1, 0) - W(0, 1));
+    const Eigen::Vector3d w_fd = angular_velocity_fd(plus[b], minus[b]);
     const Eigen::VectorXd Jv = Jcom.middleRows<6>(6 * b) * v;
     EXPECT_LE((Jv.head<3>() - v_fd).norm(), kDifferenceTolerance * (1.0 + v_fd.norm())) << "body " << b;
-    EXPECT_LE((Jv.tail<3>() - 0.5 * w_fd).norm(), kDifferenceTolerance * (1.0 + w_fd.norm())) << "body " << b;
+    EXPECT_LE((Jv.tail<3>() - w_fd).norm(), kDifferenceTolerance * (1.0 + w_fd.norm())) << "body " << b;
   }
   // A point on the last frame.
   const int frame = static_cast<int>(model_.frame_name.size()) - 1;
@@ -61,6 +67,31 @@ TEST_P(Utilities, JacobiansMatchFiniteDifferencesOfKinematics) {
   const Eigen::Vector3d x_minus = dyn_->frame_poses(dyn_->integrate(q, v, -kStep))[frame] * offset;
   const Eigen::Vector3d v_fd = (x_plus - x_minus) / (2 * kStep);
   EXPECT_LE(((Jpoint * v).head<3>() - v_fd).norm(), kDifferenceTolerance * (1.0 + v_fd.norm()));
+  const Eigen::Vector3d w_fd = angular_velocity_fd(dyn_->frame_poses(dyn_->integrate(q, v, kStep))[frame],
+                                                   dyn_->frame_poses(dyn_->integrate(q, v, -kStep))[frame]);
+  EXPECT_LE(((Jpoint * v).tail<3>() - w_fd).norm(), kDifferenceTolerance * (1.0 + w_fd.norm()));
+}
+
+// Every frame's spatial velocity [v; w] is the time derivative of its pose
+// (its origin's velocity, its rotation's angular velocity) and equals its
+// point Jacobian at the origin times qd.
+TEST_P(Utilities, FrameVelocitiesMatchFiniteDifferencesOfPoses) {
+  const Eigen::VectorXd q = test::random_configuration(model_, rng_);
+  const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0);
+  const Eigen::MatrixXd velocity = dyn_->frame_velocities(q, v);
+  ASSERT_EQ(velocity.cols(), static_cast<Eigen::Index>(model_.frame_name.size()));
+  const auto plus = dyn_->frame_poses(dyn_->integrate(q, v, kStep));
+  const auto minus = dyn_->frame_poses(dyn_->integrate(q, v, -kStep));
+  for (int f = 0; f < velocity.cols(); ++f) {
+    const Eigen::Vector3d v_fd = (plus[f].translation() - minus[f].translation()) / (2 * kStep);
+    const Eigen::Vector3d w_fd = angular_velocity_fd(plus[f], minus[f]);
+    EXPECT_LE((velocity.col(f).head<3>() - v_fd).norm(), kDifferenceTolerance * (1.0 + v_fd.norm()))
+        << model_.frame_name[f];
+    EXPECT_LE((velocity.col(f).tail<3>() - w_fd).norm(), kDifferenceTolerance * (1.0 + w_fd.norm()))
+        << model_.frame_name[f];
+    const Eigen::VectorXd Jv = dyn_->point_jacobian(q, f, Eigen::Vector3d::Zero()) * v;
+    EXPECT_LE((velocity.col(f) - Jv).norm(), 1e-12 * (1.0 + Jv.norm())) << model_.frame_name[f];
+  }
 }
 
 // The generalized force of link wrenches is J_com^T F, and RNEA subtracts it.

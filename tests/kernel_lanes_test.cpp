@@ -58,6 +58,7 @@ std::vector<Operation<L>> operations(const Model& m) {
   const int last_frame = nframe - 1;
   return {
       {"frame_poses", 12 * nframe, [](const D& d, const S& s, A& o) { d.frame_poses(s, o); }},
+      {"frame_velocities", 6 * nframe, [](const D& d, const S& s, A& o) { d.frame_velocities(s, o); }},
       {"forward_dynamics", m.nv, [](const D& d, const S& s, A& o) { d.forward_dynamics(s, o); }},
       {"inverse_dynamics", m.nv, [](const D& d, const S& s, A& o) { d.inverse_dynamics(s, o); }},
       {"bias_force", m.nv, [](const D& d, const S& s, A& o) { d.bias_force(s, o); }},
@@ -141,13 +142,13 @@ void expect_difference_matches_reference(const Model& model) {
 class KernelLanes : public ::testing::TestWithParam<ModelCase> {};
 
 TEST_P(KernelLanes, FloatLanesMatchScalarReference) {
-  const Model model = test::load_shared_model(GetParam().name, GetParam().floating_base);
+  const Model model = test::load_model_case(GetParam());
   expect_lanes_match_reference<float>(model);
   expect_difference_matches_reference<float>(model);
 }
 
 TEST_P(KernelLanes, DoubleLanesMatchScalarReference) {
-  const Model model = test::load_shared_model(GetParam().name, GetParam().floating_base);
+  const Model model = test::load_model_case(GetParam());
   expect_lanes_match_reference<double>(model);
   expect_difference_matches_reference<double>(model);
 }
