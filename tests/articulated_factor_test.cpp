@@ -216,36 +216,5 @@ TEST_P(ArticulatedFactor, LanesMatchTheScalarPath) {
 INSTANTIATE_TEST_SUITE_P(SharedModels, ArticulatedFactor, ::testing::ValuesIn(test::all_model_cases()),
                          [](const auto& info) { return test::case_name(info.param); });
 
-// A floating tree with a Spherical joint (three DOFs eliminated inside one
-// body) between revolutes, on two branches.
-Model spherical_tree() {
-  ArticulationSpec a;
-  a.name = "tree";
-  a.floating_base = true;
-  using test::massive_link;
-  a.links.push_back(massive_link("torso", "", JointType::Fixed, Eigen::Vector3d::UnitZ(), 5.0));
-  a.links.push_back(massive_link("hip", "torso", JointType::Revolute,
-                                 Eigen::Vector3d::UnitX(), 1.0, Eigen::Vector3d(0.1, 0, 0)));
-  a.links.push_back(massive_link("ball", "hip", JointType::Spherical,
-                                 Eigen::Vector3d::UnitZ(), 0.8, Eigen::Vector3d(0, 0, -0.3)));
-  a.links.push_back(massive_link("foot", "ball", JointType::Revolute,
-                                 Eigen::Vector3d(0.3, 1, 0.2), 0.3, Eigen::Vector3d(0, 0, -0.3)));
-  a.links.push_back(massive_link("shoulder", "torso", JointType::Spherical,
-                                 Eigen::Vector3d::UnitZ(), 0.6, Eigen::Vector3d(-0.1, 0, 0.2)));
-  a.links.push_back(massive_link("hand", "shoulder", JointType::Prismatic,
-                                 Eigen::Vector3d::UnitY(), 0.2, Eigen::Vector3d(0, 0.3, 0)));
-  ModelBuilder builder;
-  builder.add_articulation(a);
-  return builder.finalize();
-}
-
-TEST(ArticulatedFactorSpherical, SolvesLikeTheCrbaFactors) {
-  const Model model = spherical_tree();
-  expect_factors_solve<lane::simd<double>>(model);
-  expect_factors_solve<lane::simd<float>>(model);
-  expect_lanes_match_scalar<float>(model);
-  expect_lanes_match_scalar<double>(model);
-}
-
 }  // namespace
 }  // namespace lockstep

@@ -21,7 +21,7 @@ class FloatAccuracy : public ::testing::TestWithParam<test::ModelCase> {};
 double relative(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) { return (a - b).norm() / std::max(b.norm(), 1e-300); }
 
 TEST_P(FloatAccuracy, WithinConditioningBound) {
-  const Model model = test::load_shared_model(GetParam().name, GetParam().floating_base);
+  const Model model = test::load_model_case(GetParam());
   CopyDynamics single(model, Precision::Float), twin(model, Precision::Double);
   std::mt19937 rng(17);
   double worst_M = 0, worst_bias = 0, worst_qacc = 0, worst_pos = 0, worst_cond = 0;

@@ -91,7 +91,30 @@ inline Model load_shared_model(const std::string& name, bool floating_base) {
   return load_urdf(shared_model_path(name), options);
 }
 
-// A model case: name and base type, printable for parameterised tests.
+// A tree with Spherical joints (three DOFs in one body) between revolutes
+// and a prismatic joint, on two branches: the shared models have none.
+inline Model spherical_tree(bool floating_base) {
+  ArticulationSpec a;
+  a.name = "tree";
+  a.floating_base = floating_base;
+  a.links.push_back(massive_link("torso", "", JointType::Fixed, Eigen::Vector3d::UnitZ(), 5.0));
+  a.links.push_back(massive_link("hip", "torso", JointType::Revolute, Eigen::Vector3d::UnitX(), 1.0,
+                                 Eigen::Vector3d(0.1, 0, 0)));
+  a.links.push_back(massive_link("ball", "hip", JointType::Spherical, Eigen::Vector3d::UnitZ(), 0.8,
+                                 Eigen::Vector3d(0, 0, -0.3)));
+  a.links.push_back(massive_link("foot", "ball", JointType::Revolute, Eigen::Vector3d(0.3, 1, 0.2), 0.3,
+                                 Eigen::Vector3d(0, 0, -0.3)));
+  a.links.push_back(massive_link("shoulder", "torso", JointType::Spherical, Eigen::Vector3d::UnitZ(), 0.6,
+                                 Eigen::Vector3d(-0.1, 0, 0.2)));
+  a.links.push_back(massive_link("hand", "shoulder", JointType::Prismatic, Eigen::Vector3d::UnitY(), 0.2,
+                                 Eigen::Vector3d(0, 0.3, 0)));
+  ModelBuilder builder;
+  builder.add_articulation(a);
+  return builder.finalize();
+}
+
+// A model case: name and base type, printable for parameterised tests. The
+// name is a shared model's, or "spherical_tree" (above).
 struct ModelCase {
   std::string name;
   bool floating_base;
@@ -102,7 +125,12 @@ inline std::vector<ModelCase> all_model_cases() {
     cases.push_back({name, false});
     cases.push_back({name, true});
   }
+  cases.push_back({"spherical_tree", false});
+  cases.push_back({"spherical_tree", true});
   return cases;
+}
+inline Model load_model_case(const ModelCase& c) {
+  return c.name == "spherical_tree" ? spherical_tree(c.floating_base) : load_shared_model(c.name, c.floating_base);
 }
 inline std::string case_name(const ModelCase& c) { return c.name + (c.floating_base ? "_floating" : "_fixed"); }
 inline void PrintTo(const ModelCase& c, std::ostream* os) { *os << case_name(c); }
@@ -156,7 +184,7 @@ inline Eigen::VectorXd random_vector(int n, std::mt19937& rng, double scale = 1.
 class ModelCaseTest : public ::testing::TestWithParam<ModelCase> {
  protected:
   void SetUp() override {
-    model_ = load_shared_model(GetParam().name, GetParam().floating_base);
+    model_ = load_model_case(GetParam());
     dyn_ = std::make_unique<CopyDynamics>(model_, Precision::Double);
   }
   Model model_;
