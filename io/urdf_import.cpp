@@ -404,6 +404,11 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
         j.friction = uj->dynamics->friction;
       }
       if (uj->mimic && j.type == JointType::Fixed) {
+        // ignored, but a tag naming no joint or itself is malformed all the same
+        const std::string& leader = uj->mimic->joint_name;
+        if (leader == uj->name || !model->getJoint(leader))
+          throw ModelError(at(src, v.joint->element) + ": joint '" + j.name + "': mimic tag names " +
+                           (leader == uj->name ? "the joint itself" : "joint '" + leader + "', which does not exist"));
         warnings.push_back(at(src, v.joint->element) + ": joint '" + j.name + "': mimic tag on a fixed joint ignored");
       } else if (uj->mimic) {
         j.mimic.leader_joint = prefix + uj->mimic->joint_name;

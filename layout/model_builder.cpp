@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <sstream>
 #include <unordered_map>
 #include <unordered_set>
@@ -447,6 +448,24 @@ Model ModelBuilder::finalize() const {
     mimic.multiplier = link.joint.mimic.multiplier;
     mimic.offset = link.joint.mimic.offset;
     m.mimics.push_back(mimic);
+  }
+  // A chain of mimic tags must end at a joint that follows none: in a cycle
+  // (a follows b, b follows a) no joint leads.
+  std::map<int, int> leader_of;
+  for (const Mimic& mimic : m.mimics) leader_of[mimic.dof] = mimic.leader_dof;
+  for (std::size_t i = 0; i < m.mimics.size(); ++i) {
+    std::string chain = m.dof_name[m.mimics[i].dof];
+    for (int dof = m.mimics[i].leader_dof, hops = 0; hops <= static_cast<int>(m.mimics.size()); ++hops) {
+      chain += " follows " + m.dof_name[dof];
+      if (dof == m.mimics[i].dof) {
+        const Pending& p = pending[i];
+        throw ModelError(joint_ctx(articulations_[p.art], articulations_[p.art].links[p.link]) +
+                         ": mimic tags form a cycle (" + chain + ")");
+      }
+      const auto next = leader_of.find(dof);
+      if (next == leader_of.end()) break;
+      dof = next->second;
+    }
   }
   return m;
 }

@@ -358,6 +358,17 @@ TEST(ModelBuilder, TinyNegativeEigenvalueIsRoundOff) {
   EXPECT_EQ(m.body_inertia[1](2, 2), -1e-15);  // kept as written
 }
 
+// The tolerance is relative to the link's inertia: at a scale of 1e-6
+// kg m^2, an eigenvalue of -1e-19 (1e-13 of the scale) is round-off, one of
+// -1e-17 (1e-11) is an error, although both are far below 1e-12 absolute.
+TEST(ModelBuilder, NegativeEigenvalueToleranceIsRelative) {
+  ArticulationSpec s = sample();
+  s.links[1].inertial.inertia = Eigen::Vector3d(1e-6, 1e-6, -1e-19).asDiagonal();
+  EXPECT_NO_THROW(build(s));
+  s.links[1].inertial.inertia = Eigen::Vector3d(1e-6, 1e-6, -1e-17).asDiagonal();
+  EXPECT_MODEL_ERROR(build(s), "robot_a", "positive semi-definite");
+}
+
 TEST(ModelBuilderError, MasslessMovingSubtree) {
   ArticulationSpec s = sample();
   s.links[1].inertial = InertialSpec{};
@@ -434,6 +445,16 @@ TEST(ModelBuilderError, MimicLeaderIsItself) {
   ArticulationSpec s = sample();
   s.links[1].joint.mimic.leader_joint = "robot_a_joint";
   EXPECT_MODEL_ERROR(build(s), "robot_a_joint", "mimics itself");
+}
+
+TEST(ModelBuilderError, MimicTagsInACycle) {
+  ArticulationSpec s = sample();
+  s.links[1].joint.mimic.leader_joint = "robot_b_joint";
+  s.links[2].joint.mimic.leader_joint = "robot_a_joint";
+  EXPECT_MODEL_ERROR(build(s), "robot_a_joint", "mimic tags form a cycle",
+                     "robot_a_joint follows robot_b_joint follows robot_a_joint");
+  s.links[2].joint.mimic.leader_joint.clear();  // a chain that ends is fine
+  EXPECT_EQ(build(s).mimics.size(), 1u);
 }
 
 TEST(ModelBuilderError, MimicLeaderNotOneDof) {

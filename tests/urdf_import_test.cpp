@@ -335,6 +335,66 @@ TEST(UrdfImportError, ZeroAxis) {
                      "zero axis");
 }
 
+// The model's own rules, checked by the builder, name the file and the
+// element of a URDF too.
+Model build_urdf(const std::string& xml) {
+  ModelBuilder builder;
+  builder.add_articulation(parse(xml));
+  return builder.finalize();
+}
+
+TEST(UrdfImportError, MasslessMovingSubtree) {
+  EXPECT_MODEL_ERROR(build_urdf(chain(R"(<axis xyz="0 1 0"/>)", "")), "test.urdf", "joint 'shoulder'",
+                     "massless subtree");
+}
+
+TEST(UrdfImportError, InertiaWithANegativeEigenvalue) {
+  const std::string xml = chain(R"(<axis xyz="0 1 0"/>)", R"(<inertial><mass value="1"/>
+      <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="-0.01"/></inertial>)");
+  EXPECT_MODEL_ERROR(build_urdf(xml), "test.urdf", "link 'arm'", "positive semi-definite");
+}
+
+TEST(UrdfImportError, LowerLimitAboveUpper) {
+  const std::string xml = robot(link("base") + link("arm") +
+                                R"(<joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/>
+                                   <axis xyz="0 1 0"/><limit lower="1" upper="-1" effort="1" velocity="1"/></joint>)");
+  EXPECT_MODEL_ERROR(build_urdf(xml), "test.urdf", "joint 'shoulder'", "exceeds upper");
+}
+
+TEST(UrdfImportError, MimicOfAMissingJoint) {
+  const std::string xml = robot(link("base") + link("a") + link("b") + joint("ja", "revolute", "base", "a") +
+                                joint("jb", "revolute", "base", "b", R"(<mimic joint="ghost"/>)"));
+  EXPECT_MODEL_ERROR(build_urdf(xml), "test.urdf", "joint 'jb'", "'ghost'");
+}
+
+TEST(UrdfImportError, MimicOfItself) {
+  const std::string xml = robot(link("base") + link("a") + joint("ja", "revolute", "base", "a", R"(<mimic joint="ja"/>)"));
+  EXPECT_MODEL_ERROR(build_urdf(xml), "test.urdf", "joint 'ja'", "mimics itself");
+}
+
+TEST(UrdfImportError, MimicTagsInACycle) {
+  const std::string xml = robot(link("base") + link("a") + link("b") +
+                                joint("ja", "revolute", "base", "a", R"(<mimic joint="jb"/>)") +
+                                joint("jb", "revolute", "base", "b", R"(<mimic joint="ja"/>)"));
+  EXPECT_MODEL_ERROR(build_urdf(xml), "test.urdf", "mimic tags form a cycle");
+}
+
+// A mimic tag on a fixed joint is ignored with a warning, but one naming no
+// joint, or the joint itself, is malformed and refused with its line.
+TEST(UrdfImportError, MimicTagOnAFixedJointNamingNoJoint) {
+  for (const char* leader : {"ghost", "jf"}) {
+    const std::string xml = robot(link("base") + link("a") + link("tool") + joint("ja", "revolute", "base", "a") +
+                                  joint("jf", "fixed", "a", "tool", std::string("<mimic joint=\"") + leader + "\"/>"));
+    EXPECT_MODEL_ERROR(parse(xml), "test.urdf:", "joint 'jf'", "mimic tag names");
+  }
+  std::vector<std::string> warnings;
+  parse(robot(link("base") + link("a") + link("tool") + joint("ja", "revolute", "base", "a") +
+              joint("jf", "fixed", "a", "tool", R"(<mimic joint="ja"/>)")),
+        &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("mimic tag on a fixed joint ignored"), std::string::npos) << warnings[0];
+}
+
 // ---- the robots in ../shared/models and the bundled quadruped -------------
 
 struct RobotCase {
