@@ -101,6 +101,7 @@ struct Model {
   std::vector<JointType> frame_joint_type;        // Fixed when the link was fused
   std::vector<Eigen::Vector3d> frame_joint_axis;  // axis as declared, in the link frame
   std::vector<int> frame_articulation;
+  std::vector<double> frame_mass;                 // the link's own mass as written (its body's mass lumps fused links)
 
   std::vector<Shape> shapes;
   std::vector<Mimic> mimics;

@@ -410,6 +410,7 @@ Model ModelBuilder::finalize() const {
       m.frame_joint_type.push_back(ftype);
       m.frame_joint_axis.push_back(axis);
       m.frame_articulation.push_back(a);
+      m.frame_mass.push_back(link.inertial.mass);
 
       if (body >= 0) {  // the world keeps no mass
         const InertialSpec& in = link.inertial;

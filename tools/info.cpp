@@ -90,14 +90,14 @@ void print_info_text(const LoadedModel& loaded, std::ostream& out) {
   bodies.print(out);
 
   out << "\nframes (" << m.frame_name.size() << ", URDF links):\n";
-  Table frames({"index", "name", "body", "joint", "type", "note"});
+  Table frames({"index", "name", "body", "joint", "type", "mass", "note"});
   for (std::size_t f = 0; f < m.frame_name.size(); ++f) {
     const int body = m.frame_body[f];
     const std::string note = body < 0 ? "fixed to the world"
         : frame_fused(m, int(f)) ? "fused into body " + std::to_string(body) + " (" + body_name(m, body) + ")" : "";
     frames.add({std::to_string(f), m.frame_name[f], body < 0 ? "world" : std::to_string(body),
                 m.frame_joint_name[f].empty() ? "-" : m.frame_joint_name[f], joint_type_name(m.frame_joint_type[f]),
-                note});
+                mass_text(m.frame_mass[f]), note});
   }
   frames.print(out);
 
@@ -156,7 +156,8 @@ void print_info_json(const LoadedModel& loaded, std::ostream& out) {
         << ", \"parent\": " << m.frame_parent[f]
         << ", \"joint\": " << (m.frame_joint_name[f].empty() ? "null" : quote(m.frame_joint_name[f]))
         << ", \"joint_type\": " << quote(joint_type_name(m.frame_joint_type[f]))
-        << ", \"fused\": " << (frame_fused(m, int(f)) ? "true" : "false") << "}";
+        << ", \"fused\": " << (frame_fused(m, int(f)) ? "true" : "false")
+        << ", \"mass\": " << number(m.frame_mass[f]) << "}";
   }
   out << "\n  ],\n";
 
