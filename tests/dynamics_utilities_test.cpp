@@ -126,6 +126,12 @@ TEST_P(Utilities, IncomingJointForcesProjectToJointForces) {
       case JointType::Prismatic: EXPECT_NEAR(z.dot(force), tau[d], 1e-9 * (1.0 + force.norm() + torque.norm())); break;
       case JointType::Free:  // the body-frame projections are the (zero) free-joint forces plus tau
         EXPECT_LE((poses[b].linear().transpose() * force - tau.segment<3>(d)).norm(), 1e-9 * (1.0 + force.norm()));
+        EXPECT_LE((poses[b].linear().transpose() * torque - tau.segment<3>(d + 3)).norm(),
+                  1e-9 * (1.0 + force.norm() + torque.norm()));
+        break;
+      case JointType::Spherical:  // its torque in the body frame is tau
+        EXPECT_LE((poses[b].linear().transpose() * torque - tau.segment<3>(d)).norm(),
+                  1e-9 * (1.0 + force.norm() + torque.norm()));
         break;
       default: break;
     }

@@ -529,17 +529,23 @@ TEST(ModelBuilderWarning, MasslessFixedLink) {
   EXPECT_MODEL_ERROR(build(s, strict), "robot_a_tip", "massless");
 }
 
+// A point mass warns, naming its link, on a fixed joint (robot_a_tip, fused)
+// and inside the chain on a moving joint (robot_a); strict refuses it.
 TEST(ModelBuilderWarning, PointMass) {
-  ArticulationSpec s = sample();
-  s.links[3].inertial.inertia.setZero();
-  ModelBuilder b;
-  b.add_articulation(s);
-  ASSERT_EQ(b.warnings().size(), 1u);
-  EXPECT_NE(b.warnings()[0].find("robot_a_tip"), std::string::npos);
-  EXPECT_NE(b.warnings()[0].find("point mass"), std::string::npos);
-  BuildOptions strict;
-  strict.strict = true;
-  EXPECT_MODEL_ERROR(build(s, strict), "robot_a_tip", "point mass");
+  for (const int link : {3, 1}) {
+    ArticulationSpec s = sample();
+    s.links[link].inertial.inertia.setZero();
+    const std::string name = "link '" + s.links[link].name + "'";
+    ModelBuilder b;
+    b.add_articulation(s);
+    ASSERT_EQ(b.warnings().size(), 1u);
+    EXPECT_NE(b.warnings()[0].find(name), std::string::npos) << b.warnings()[0];
+    EXPECT_NE(b.warnings()[0].find("point mass"), std::string::npos) << b.warnings()[0];
+    EXPECT_EQ(b.finalize().nbody, 3) << "it loads";
+    BuildOptions strict;
+    strict.strict = true;
+    EXPECT_MODEL_ERROR(build(s, strict), name.c_str(), "point mass");
+  }
 }
 
 TEST(ModelBuilderWarning, TriangleInequalityKeepsValues) {
