@@ -278,7 +278,8 @@ TEST(ContactPairs, GroundDiffersPerCopy) {
 // tilted 35 degrees with ground friction 1.5 (mu 1.0: it sticks, less than
 // 0.1 mm in 1 s). One block: the copies differ lane by lane.
 TEST(ContactPairs, GroundTiltAndFrictionDifferPerCopy) {
-  const double half = 0.1, g = 9.81, theta = 35 * 3.14159265358979323846 / 180;
+  const double half = 0.1;
+  const Incline incline(35 * kPi / 180);
   const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(half), 1.0);
   for (const Precision precision : {Precision::Float, Precision::Double}) {
     StepOptions o;
@@ -286,21 +287,19 @@ TEST(ContactPairs, GroundTiltAndFrictionDifferPerCopy) {
     o.contacts.ground = true;
     o.contacts.shapes = {ShapeContact{0.5, 0.0}};
     Simulator sim(model, 3, o);
-    const Eigen::Vector3d tilted(std::sin(theta), 0, std::cos(theta));
-    const Eigen::Quaterniond tilt(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitY()));
     sim.set_ground(0, 0.0, Eigen::Vector3d::UnitZ(), 0.5);
-    sim.set_ground(1, 0.0, tilted, 0.5);
-    sim.set_ground(2, 0.0, tilted, 1.5);
+    sim.set_ground(1, 0.0, incline.normal, 0.5);
+    sim.set_ground(2, 0.0, incline.normal, 1.5);
+    const Eigen::Vector3d start = half * incline.normal;
     sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, half)), Eigen::VectorXd::Zero(6));
-    for (int c = 1; c < 3; ++c) sim.set_state(c, free_pose(half * tilted, tilt), Eigen::VectorXd::Zero(6));
+    for (int c = 1; c < 3; ++c) sim.set_state(c, free_pose(start, incline.tilt), Eigen::VectorXd::Zero(6));
     sim.step(500);  // 1 s
-    const Eigen::Vector3d downhill(std::cos(theta), 0, -std::sin(theta));
-    auto travelled = [&](int c, const Eigen::Vector3d& start) { return (sim.q(c).head<3>() - start).dot(downhill); };
-    const double sliding = g * (std::sin(theta) - 0.5 * std::cos(theta));
+    auto travelled = [&](int c) { return (sim.q(c).head<3>() - start).dot(incline.downhill); };
+    const double sliding = incline.sliding(0.5);
     const std::string what = precision_name(precision);
     EXPECT_LT((sim.q(0).head<3>() - Eigen::Vector3d(0, 0, half)).norm(), 1e-4) << what << ": flat";
-    EXPECT_NEAR(2 * travelled(1, half * tilted), sliding, 0.02 * sliding) << what << ": mu 0.5 slides";
-    EXPECT_LT(std::abs(travelled(2, half * tilted)), 1e-4) << what << ": mu 1.0 sticks";
+    EXPECT_NEAR(2 * travelled(1), sliding, 0.02 * sliding) << what << ": mu 0.5 slides";
+    EXPECT_LT(std::abs(travelled(2)), 1e-4) << what << ": mu 1.0 sticks";
   }
 }
 

@@ -11,8 +11,6 @@
 namespace lockstep::test {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 StepOptions contact_options(Precision precision, SolverType solver = SolverType::PGS) {
   StepOptions o;
   o.precision = precision;
@@ -118,23 +116,21 @@ TEST_P(ContactPrecision, TorsionalFrictionStopsASpinningBall) {
 TEST_P(ContactPrecision, BoxOnInclineSticksOrSlides) {
   const double mu = 0.5, half = 0.1, g = 9.81;
   for (double degrees : {20.0, 35.0}) {
-    const double theta = degrees * kPi / 180;
+    const Incline incline(degrees * kPi / 180);
     const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(half), 1.0);
     StepOptions o = options();
-    o.contacts.ground_normal = Eigen::Vector3d(std::sin(theta), 0, std::cos(theta));
+    o.contacts.ground_normal = incline.normal;
     o.contacts.ground_contact.friction = mu;
     o.contacts.shapes = {ShapeContact{mu, 0.0}};
     Simulator sim(model, 1, o);
-    const Eigen::Quaterniond tilt(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitY()));
-    const Eigen::Vector3d start = half * o.contacts.ground_normal;
-    sim.set_state(0, free_pose(start, tilt), Eigen::VectorXd::Zero(6));
+    const Eigen::Vector3d start = half * incline.normal;
+    sim.set_state(0, free_pose(start, incline.tilt), Eigen::VectorXd::Zero(6));
     sim.step(500);
-    const Eigen::Vector3d downhill(std::cos(theta), 0, -std::sin(theta));
-    const double travelled = (sim.q(0).head<3>() - start).dot(downhill);
-    if (std::tan(theta) < mu) {
+    const double travelled = (sim.q(0).head<3>() - start).dot(incline.downhill);
+    if (std::tan(incline.theta) < mu) {
       EXPECT_LT(std::abs(travelled), 1e-4) << degrees << " deg";
     } else {
-      const double expected = g * (std::sin(theta) - mu * std::cos(theta));
+      const double expected = incline.sliding(mu, g);
       EXPECT_NEAR(2 * travelled, expected, 0.02 * expected) << degrees << " deg";
     }
     EXPECT_EQ(sim.contacts(0).size(), 4u) << "a face on the plane: its four corners";

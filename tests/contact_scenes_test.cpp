@@ -12,8 +12,6 @@
 namespace lockstep::test {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // A fixed-base finger in the horizontal plane: proximal and distal joints
 // about -z, links along +y (0.10 m and 0.08 m, 50 g each), a 1 cm sphere at
 // the tip. A positive proximal angle swings the tip towards +x.
@@ -239,7 +237,7 @@ Standing stand(const std::string& name, double tilt, Precision precision, Solver
   o.precision = precision;
   o.solver = solver;
   o.contacts.ground = true;
-  o.contacts.ground_normal = Eigen::Vector3d(std::sin(tilt), 0, std::cos(tilt));
+  o.contacts.ground_normal = Incline(tilt).normal;
   std::vector<DofSettings> dofs = default_dof_settings(model);
   for (int k = 6; k < model.nv; ++k) dofs[k].drive_stiffness = 300, dofs[k].drive_damping = 8;
   Simulator sim(model, 1, o, dofs);

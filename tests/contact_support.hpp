@@ -7,6 +7,8 @@
 #include "tools/step_scene.hpp"
 #include "tests/sim_support.hpp"
 
+#include <cmath>
+
 namespace lockstep::test {
 
 // Expects f() to throw std::invalid_argument whose message holds `piece`.
@@ -19,6 +21,24 @@ void expect_invalid(F&& f, const std::string& piece) {
     EXPECT_NE(std::string(e.what()).find(piece), std::string::npos) << "message '" << e.what() << "' lacks '" << piece << "'";
   }
 }
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A plane through the origin tilted by theta (rad) about y: its normal, the
+// downhill direction along it, the rotation that lays a body's z on the
+// normal, and the sliding acceleration g (sin - mu cos) of a block on it
+// (negative: it sticks).
+struct Incline {
+  explicit Incline(double theta)
+      : theta(theta),
+        normal(std::sin(theta), 0, std::cos(theta)),
+        downhill(std::cos(theta), 0, -std::sin(theta)),
+        tilt(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitY())) {}
+  double sliding(double mu, double g = 9.81) const { return g * (std::sin(theta) - mu * std::cos(theta)); }
+  double theta;
+  Eigen::Vector3d normal, downhill;
+  Eigen::Quaterniond tilt;
+};
 
 // A sphere of radius r centred at `at` on its link.
 inline Shape sphere_at(double r, const Eigen::Vector3d& at) {
