@@ -79,4 +79,11 @@ struct ContactSettings {
 // Throws std::invalid_argument naming the field (and shape, box or link).
 void validate_contact_settings(const Model& model, const ContactSettings& settings);
 
+// The ground through (0, 0, height) with normal `normal` (non-zero, any
+// length) as the plane n . x = d the contact kernels read: [n (unit); d].
+inline Eigen::Vector4d ground_plane(const Eigen::Vector3d& normal, double height) {
+  const Eigen::Vector3d n = normal.normalized();
+  return Eigen::Vector4d(n.x(), n.y(), n.z(), n.z() * height);
+}
+
 }  // namespace lockstep

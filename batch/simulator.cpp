@@ -755,9 +755,8 @@ void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& norma
   require(std::isfinite(height), "set_ground: height must be finite");
   require(normal.allFinite() && normal.norm() > 1e-9, "set_ground: normal must be a finite non-zero vector");
   require(std::isfinite(friction) && friction >= 0, "set_ground: friction must be finite and >= 0");
-  const Eigen::Vector3d n = normal.normalized();
   visit([&](auto& b) {
-    b.ground.set(copy, Eigen::Vector4d(n.x(), n.y(), n.z(), n.z() * height));
+    b.ground.set(copy, ground_plane(normal, height));
     b.ground_friction.fill(copy, friction);
   });
 }

@@ -199,8 +199,7 @@ void StepEngine<L>::make_contact_arrays(int copies, int capacity, int rows_per_c
   const int C = capacity, k = rows_per_contact;
   StepBatch<T>& B = batch_;
   B.ground = BatchArray<T>(copies, 4, kWidth);
-  const Eigen::Vector3d n = settings.ground_normal.normalized();
-  B.ground.set_all(Eigen::Vector4d(n.x(), n.y(), n.z(), n.z() * settings.ground_height));
+  B.ground.set_all(ground_plane(settings.ground_normal, settings.ground_height));
   B.ground_friction = BatchArray<T>(copies, 1, kWidth, static_cast<T>(settings.ground_contact.friction));
   B.contact_id = BatchArray<T>(copies, C, kWidth, T(-1));
   B.contact_impulse = BatchArray<T>(copies, C * k, kWidth);

@@ -956,8 +956,8 @@ std::optional<std::string> ground_start_warning(const Scene& scene) {
   if (!contacts.ground || scene.env.step.stages[static_cast<int>(Stage::Contacts)] == StageMode::Off) return std::nullopt;
   const Model& model = scene.model;
   const Eigen::VectorXd q = scene.env.initial_q.size() == model.nq ? scene.env.initial_q : model.neutral_configuration();
-  const Eigen::Vector3d n = contacts.ground_normal.normalized();
-  const std::optional<std::pair<double, int>> lowest = lowest_shape(model, q, n, n.z() * contacts.ground_height);
+  const Eigen::Vector4d plane = ground_plane(contacts.ground_normal, contacts.ground_height);
+  const std::optional<std::pair<double, int>> lowest = lowest_shape(model, q, plane.head<3>(), plane[3]);
   if (!lowest || lowest->first > -0.01) return std::nullopt;
   const bool fixed = std::none_of(model.body_joint.begin(), model.body_joint.end(),
                                   [](JointType j) { return j == JointType::Free; });
