@@ -30,7 +30,7 @@ std::size_t StepBatch<T>::bytes_per_copy() const {
                                  &initial_q, &initial_v, &fault, &applied_drive, &applied_passive, &applied_friction,
                                  &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
-                                 &contact_dropped, &contact_overflow_steps})
+                                 &contact_dropped, &contact_overflow_steps, &momentum_remainder})
     values += static_cast<std::size_t>(a->size());
   return values * sizeof(T);
 }
@@ -102,11 +102,13 @@ auto joint_parameter_fields(Batch& b, const JointParameters& scene) {
                     std::pair{&b.armature, &scene.armature}, std::pair{&b.joint_friction, &scene.friction}};
 }
 
-// Zero joint-row impulses, no contact points: nothing to warm-start from.
+// Zero joint-row impulses, no contact points: nothing to warm-start from;
+// no momentum to carry.
 template <class T>
 void clear_warm_start(StepBatch<T>& b, int copy) {
   b.impulse.fill(copy, 0);
   b.contact_id.fill(copy, -1);
+  b.momentum_remainder.fill(copy, 0);
 }
 
 // Symmetric positive semidefinite, round-off aside: asymmetry and the
@@ -505,7 +507,7 @@ CopySnapshot Simulator::snapshot(int copy) const {
       at += a->size();
     }
     return CopySnapshot{b.state.q.get(copy), b.state.v.get(copy), b.impulse.get(copy), b.contact_id.get(copy),
-                        b.contact_impulse.get(copy), parameters, scene_key_};
+                        b.contact_impulse.get(copy), b.momentum_remainder.get(copy), parameters, scene_key_};
   });
 }
 
@@ -513,7 +515,9 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
   check_copy(copy, "restore");
   visit([&](auto& b) {
     require(s.q.size() == model_->nq && s.v.size() == model_->nv && s.joint_impulse.size() == b.impulse.size() &&
-                s.contact_id.size() == b.contact_id.size() && s.contact_impulse.size() == b.contact_impulse.size(),
+                s.contact_id.size() == b.contact_id.size() && s.contact_impulse.size() == b.contact_impulse.size() &&
+                (s.momentum_remainder.size() == b.momentum_remainder.size() || s.momentum_remainder.size() == 0 ||
+                 b.momentum_remainder.size() == 0),
             "restore: the snapshot's sizes do not match this simulator's scene");
     int size = 0;
     for (const auto* a : copy_parameters(b)) size += a->size();
@@ -531,6 +535,9 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     b.impulse.set(copy, s.joint_impulse);
     b.contact_id.set(copy, s.contact_id);
     b.contact_impulse.set(copy, s.contact_impulse);
+    // none to carry where either side steps without the momentum projection
+    if (s.momentum_remainder.size() == b.momentum_remainder.size()) b.momentum_remainder.set(copy, s.momentum_remainder);
+    else b.momentum_remainder.fill(copy, 0);
   });
   note_copy_inputs(copy);
   // the restored copy may carry parameters of its own, or the scene's again

@@ -85,6 +85,11 @@ struct StepBatch {
   BatchArray<T> ground, ground_friction;
   BatchArray<T> contact_id, contact_impulse, contact_point, contact_normal, contact_separation;
   BatchArray<T> contact_count, contact_dropped, contact_overflow_steps;
+  // With StepOptions::conserve_linear_momentum, per floating articulation
+  // (world axes, 3 each): the momentum the last step's correction could not
+  // place on its base's rounded velocity, which the next step adds
+  // (batch/step_momentum.cpp). Empty otherwise.
+  BatchArray<T> momentum_remainder;
 
   std::size_t bytes_per_copy() const;
 };
@@ -109,14 +114,17 @@ struct Contact {
 };
 
 // Everything a copy's next steps depend on: the state, the solver's warm
-// start (joint-row impulses, contact points and their impulses), and the
+// start (joint-row impulses, contact points and their impulses), the
+// momentum remainder (StepBatch::momentum_remainder; a snapshot without one
+// restores into a simulator with the projection as a zero one, and the
+// other way round it is dropped), and the
 // copy's inputs and per-copy parameters (torques, wrenches, inertial
 // parameters, gravity, drive targets and gains, joint damping, armature,
 // ground, initial state, fault), in that order in `parameters`. Restoring
 // a snapshot, into this simulator or one built alike, replays the copy bit
 // for bit.
 struct CopySnapshot {
-  Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, parameters;
+  Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, momentum_remainder, parameters;
   // Simulator::scene_key() of the simulator it came from: restore refuses a
   // snapshot of another scene whose arrays happen to have the same sizes.
   // 0 (a snapshot put together by hand) is not checked.

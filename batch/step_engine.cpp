@@ -39,7 +39,7 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       needed_source(needed.m), need(joint_rows), violated(joint_rows),
       column_built(columns), new_columns(columns), held_coupling(static_cast<std::size_t>(columns) * needed.m),
       dof_velocity(columns), dof_displacement(columns), held_speed(columns), momentum_target(km.nbody),
-      articulation_mass(km.nbody) {}
+      momentum_added(km.nbody), articulation_mass(km.nbody) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -82,6 +82,7 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
         std::fill_n(momentum_root_.begin() + a.first_body, a.body_count, a.first_body);
       }
   }
+  batch_.momentum_remainder = BatchArray<T>(copies, 3 * static_cast<int>(floating_roots_.size()), kWidth);
 
   // Solver rows, DOF by DOF: position limit, velocity limit, friction.
   auto add_row = [&](JointRowKind kind, int k, double a, double b) {
@@ -427,12 +428,14 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
     for (int i = 0; i < nq; ++i)
       lane::store(lane::select(restart, lane::load<L>(q_init + i * W), lane::load<L>(q_next + i * W)), q + i * W);
     for (int k = 0; k < nv; ++k) lane::store(lane::select(restart, lane::load<L>(v_init + k * W), s.u1[k]), v + k * W);
-    T* impulse = B.impulse.block(block);
-    for (int r = 0; r < B.impulse.size(); ++r)
-      lane::store(lane::select(restart, zero, lane::load<L>(impulse + r * W)), impulse + r * W);
-    T* contact_id = B.contact_id.block(block);  // no warm start for the contacts either
-    for (int c = 0; c < B.contact_id.size(); ++c)
-      lane::store(lane::select(restart, L(T(-1)), lane::load<L>(contact_id + c * W)), contact_id + c * W);
+    // no warm start, no contacts to warm-start from, no momentum to carry
+    auto clear = [&](BatchArray<T>& a, T value) {
+      T* p = a.block(block);
+      for (int i = 0; i < a.size(); ++i) lane::store(lane::select(restart, L(value), lane::load<L>(p + i * W)), p + i * W);
+    };
+    clear(B.impulse, T(0));
+    clear(B.contact_id, T(-1));
+    clear(B.momentum_remainder, T(0));
   } else {
     for (int i = 0; i < nq; ++i) lane::store(lane::load<L>(q_next + i * W), q + i * W);
     for (int k = 0; k < nv; ++k) lane::store(s.u1[k], v + k * W);

@@ -126,8 +126,10 @@ class StepEngine final : public Simulator::Engine {
     std::vector<L> dof_velocity, dof_displacement, held_speed;  // (columns)
     bool held_rows_near_band = false;  // some substep of the round exceeded held_speed
     // keep_linear_momentum's, per floating root body: the momentum the step
-    // must leave, and the articulation's mass
-    std::vector<Vec3<L>> momentum_target;  // (nbody)
+    // must leave, as P(q0, v0) and the small rest (the external and the
+    // rows' impulses and the last step's remainder), and the articulation's
+    // mass
+    std::vector<Vec3<L>> momentum_target, momentum_added;  // (nbody)
     std::vector<L> articulation_mass;      // (nbody)
     // carried from begin_block to end_block
     L input_fault;

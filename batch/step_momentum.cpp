@@ -21,6 +21,17 @@
 // correction is of the integrator's own order, O(h^2) per step; it is a
 // projection onto the momentum's invariant set (E. Hairer, C. Lubich,
 // G. Wanner, "Geometric Numerical Integration", 2nd ed., sec. IV.4).
+//
+// In float the base's velocity holds a correction only to ulp(v): what
+// lands there differs from dv, and the same way step after step along a
+// smooth motion, which drifts the momentum by a few 1e-8 of |P| per step.
+// The shortfall r = P_target - P(q1, v1 + dv) is carried in the batch
+// (StepBatch::momentum_remainder) and added to the next step's target, so
+// that it is placed later instead of lost (error feedback): the momentum
+// then stays within a few ulps of the exact balance. P_target is kept in
+// two parts, P(q0, v0) and the small h F + P(q0, v1 - u*) + r, and
+// differences of momenta are taken before the small part is added, so that
+// float keeps the small part's digits.
 #include "batch/step_engine.hpp"
 #include "kernels/momentum.hpp"
 
@@ -32,52 +43,63 @@ template <class L>
 void StepEngine<L>::linear_momentum_target(int block, T h, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
   const StepBatch<T>& B = batch_;
-  const int nv = km_.nv;
   const T* inertia = this->inertia(block);
-  // v0 plus the rows' velocity change: P is linear in the velocity.
-  T* velocity = fields(s.v_stage);
-  for (int k = 0; k < nv; ++k)
-    lane::store(s.solving ? s.u0[k] + (s.u1[k] - s.u_free[k]) : s.u0[k], velocity + k * W);
-  subtree_momentum<L>(km_, inertia, velocity, s.ws);
-  // momentum_target first sums each articulation's external force (world
-  // axes), then becomes P(q0, v0 + v1 - u*) + h (force + m g)
+  // momentum_added first sums each articulation's external force (world
+  // axes), then becomes h (force + m g) + r, then takes the rows' impulse
   for (int root : floating_roots_) {
     s.articulation_mass[root] = L(T(0));
     const int dof0 = km_.body_dof_offset[root];
     const Vec3<L> base_force = {s.terms.command[dof0], s.terms.command[dof0 + 1], s.terms.command[dof0 + 2]};
-    s.momentum_target[root] = spatial::rotate(s.ws.local[root].R, base_force);
+    s.momentum_added[root] = spatial::rotate(s.ws.local[root].R, base_force);
   }
   const T* wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
   for (int b = 0; b < km_.nbody; ++b) {
     const int root = momentum_root_[b];
     if (root < 0) continue;
     s.articulation_mass[root] = s.articulation_mass[root] + lane::load<L>(inertia + kInertiaParams * b * W);
-    if (wrench) {
-      const T* F = wrench + 6 * b * W;
-      const Vec3<L> force = {lane::load<L>(F), lane::load<L>(F + W), lane::load<L>(F + 2 * W)};
-      s.momentum_target[root] = spatial::add(s.momentum_target[root], force);
-    }
+    if (wrench) s.momentum_added[root] = spatial::add(s.momentum_added[root], load_vec3<L>(wrench + 6 * b * W));
   }
-  const T* g = B.state.gravity.block(block);
-  const Vec3<L> gravity = {lane::load<L>(g), lane::load<L>(g + W), lane::load<L>(g + 2 * W)};
-  for (int root : floating_roots_) {
-    const Vec3<L> force = spatial::add(s.momentum_target[root], spatial::scale(s.articulation_mass[root], gravity));
-    s.momentum_target[root] = spatial::add(root_momentum(s.ws, root), spatial::scale(L(h), force));
+  const Vec3<L> gravity = load_vec3<L>(B.state.gravity.block(block));
+  const T* remainder = B.momentum_remainder.block(block);
+  for (std::size_t i = 0; i < floating_roots_.size(); ++i) {
+    const int root = floating_roots_[i];
+    const Vec3<L> force = spatial::add(s.momentum_added[root], spatial::scale(s.articulation_mass[root], gravity));
+    s.momentum_added[root] = spatial::add(load_vec3<L>(remainder + 3 * i * W), spatial::scale(L(h), force));
   }
+  // P(q0, v0): the very sum, of the very state, that ended the last step,
+  // so that the remainder carried from there fits it exactly
+  subtree_momentum<L>(km_, inertia, fields(s.u0), s.ws);
+  for (int root : floating_roots_) s.momentum_target[root] = root_momentum(s.ws, root);
+  // The rows' impulse P(q0, v1 - u*) (P is linear in v), a sum of its own:
+  // added to v0 before the sum, it would round at ulp(P) every step it acts
+  if (!s.solving) return;
+  T* velocity_change = fields(s.v_stage);
+  for (int k = 0; k < km_.nv; ++k) lane::store(s.u1[k] - s.u_free[k], velocity_change + k * W);
+  subtree_momentum<L>(km_, inertia, velocity_change, s.ws);
+  for (int root : floating_roots_) s.momentum_added[root] = spatial::add(s.momentum_added[root], root_momentum(s.ws, root));
 }
 
 template <class L>
 void StepEngine<L>::keep_linear_momentum(int block, const T* q1, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const T* inertia = this->inertia(block);
+  // P_target - P(q1, v): the difference of the large parts first
+  auto shortfall = [&](int root) {
+    return spatial::add(spatial::sub(s.momentum_target[root], root_momentum(s.ws, root)), s.momentum_added[root]);
+  };
   joint_transforms<L>(km_, q1, s.ws);
-  subtree_momentum<L>(km_, this->inertia(block), fields(s.u1), s.ws);
+  subtree_momentum<L>(km_, inertia, fields(s.u1), s.ws);
   for (int root : floating_roots_) {
-    const Vec3<L> change = spatial::sub(s.momentum_target[root], root_momentum(s.ws, root));
+    const Vec3<L> change = shortfall(root);
     const Vec3<L> dv = spatial::rotate_back(s.ws.local[root].R, spatial::scale(L(T(1)) / s.articulation_mass[root], change));
     const int dof0 = km_.body_dof_offset[root];
     s.u1[dof0] = s.u1[dof0] + dv.x;
     s.u1[dof0 + 1] = s.u1[dof0 + 1] + dv.y;
     s.u1[dof0 + 2] = s.u1[dof0 + 2] + dv.z;
   }
+  subtree_momentum<L>(km_, inertia, fields(s.u1), s.ws);
+  T* remainder = batch_.momentum_remainder.block(block);
+  for (std::size_t i = 0; i < floating_roots_.size(); ++i) store_vec3(shortfall(floating_roots_[i]), remainder + 3 * i * W);
 }
 
 #define LOCKSTEP_STEP_MOMENTUM(L)                                                    \

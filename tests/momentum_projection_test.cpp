@@ -83,6 +83,111 @@ TEST(MomentumProjection, FreeFallChangesMomentumByTheExternalImpulseOnly) {
   }
 }
 
+// anymal_b in flight without gravity for 40 s, thrown and spinning, its
+// legs swung between the stance and a crouch every 0.25 s: its momentum
+// must stay what it was thrown with. In float the base's velocity takes a
+// correction only to ulp(v), and the rows' impulses added to v0 rounded at
+// ulp(P): without the remainder carried from step to step and the impulse
+// summed on its own, those roundings went the same way along the smooth
+// motion and the momentum drifted (measured: 9.8e-6 of |P| over the first
+// 10 s, and 4.0e-6 over the 150 steps of
+// ContactPrecision.ProjectionKeepsMomentumOverTheWholeCollision).
+// What is left is the float evaluation of the momentum itself: the step
+// keeps its own float sum of the 13 bodies' momenta exactly, and that sum
+// differs from the exact momentum of the same state by a few ulps of its
+// terms (each up to about |P| with the spin, turned through up to five
+// joint rotations); BatchDynamics' float momentum of the same states errs
+// by up to 4.5e-7. It does not grow: measured worst deviation 1.0e-6 of
+// |P| after 10 s, 1.5e-6 after 20 s and 1.6e-6 from 25 s to 80 s (double:
+// 1.8e-15 to 3.7e-15). Asserted over 40 s: 1e-12 in double, 2.5e-6 in
+// float, a quarter of the old drift's in its first 10 s.
+TEST(MomentumProjection, FlightKeepsItsMomentumToRoundingForLong) {
+  const Model model = load_shared_model("anymal_b", true);
+  const CopyDynamics dyn(model);
+  for (Precision precision : {Precision::Double, Precision::Float}) {
+    Simulator sim(model, 1, options(precision, true), leg_drives(model));
+    sim.set_gravity(0, Eigen::Vector3d::Zero());
+    const Eigen::VectorXd stand = stance(model);
+    Eigen::VectorXd crouch = stand;
+    for (int k = 7; k < model.nq; ++k) crouch[k] *= 1.8;
+    Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
+    v0.head<6>() << 0.3, -0.2, 0.1, 0.5, -1.0, 2.0;
+    sim.set_state(0, stand, v0);
+    const Eigen::Vector3d p0 = dyn.linear_momentum(sim.q(0), sim.v(0));
+    double worst = 0;
+    for (int i = 0; i < 20000; ++i) {
+      if (i % 125 == 0) sim.set_drive_target(0, (i / 125) % 2 ? stand : crouch, Eigen::VectorXd::Zero(model.nv));
+      sim.step();
+      worst = std::max(worst, (dyn.linear_momentum(sim.q(0), sim.v(0)) - p0).norm() / p0.norm());
+    }
+    EXPECT_EQ(sim.fault(0), Fault::None);
+    std::cout << "[ measured ] " << precision_name(precision) << ": momentum deviation over 40 s of flight " << worst
+              << " of |P|\n";
+    EXPECT_LT(worst, precision == Precision::Double ? 1e-12 : 2.5e-6) << precision_name(precision);
+  }
+}
+
+// The remainder is state: a snapshot carries it, and a restored copy
+// replays bit for bit (without it, the replay's momentum corrections differ
+// in the last bits and so does its trajectory); a reset clears it.
+TEST(MomentumProjection, SnapshotCarriesTheRemainder) {
+  const Model model = load_shared_model("anymal_b", true);
+  Simulator sim(model, 1, options(Precision::Float, true), leg_drives(model));
+  Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
+  v0.head<6>() << 0.3, -0.2, 0.1, 0.5, -1.0, 2.0;
+  Eigen::VectorXd crouch = stance(model);
+  for (int k = 7; k < model.nq; ++k) crouch[k] *= 1.8;
+  sim.set_state(0, stance(model), v0);
+  sim.set_drive_target(0, crouch, Eigen::VectorXd::Zero(model.nv));
+  sim.step(100);
+  const CopySnapshot saved = sim.snapshot(0);
+  ASSERT_EQ(saved.momentum_remainder.size(), 3) << "one floating articulation";
+  EXPECT_GT(saved.momentum_remainder.norm(), 0) << "float leaves some correction to carry";
+  sim.step(100);
+  const CopySnapshot first = sim.snapshot(0);
+  sim.restore(0, saved);
+  sim.step(100);
+  const CopySnapshot again = sim.snapshot(0);
+  EXPECT_TRUE(same_bits(first.q, again.q));
+  EXPECT_TRUE(same_bits(first.v, again.v));
+  EXPECT_TRUE(same_bits(first.momentum_remainder, again.momentum_remainder));
+  CopySnapshot without = saved;
+  without.momentum_remainder.setZero();
+  sim.restore(0, without);
+  sim.step(100);
+  EXPECT_FALSE(same_bits(first.v, sim.v(0))) << "the remainder changes the trajectory";
+  sim.reset(0);
+  EXPECT_EQ(sim.snapshot(0).momentum_remainder.norm(), 0);
+  // across the option: none to carry, and nothing refused
+  Simulator plain(model, 1, options(Precision::Float, false), leg_drives(model));
+  plain.restore(0, saved);
+  EXPECT_TRUE(same_bits(plain.q(0), saved.q));
+  EXPECT_EQ(plain.snapshot(0).momentum_remainder.size(), 0);
+  sim.restore(0, plain.snapshot(0));
+  EXPECT_EQ(sim.snapshot(0).momentum_remainder.norm(), 0);
+}
+
+// A copy that faults restarts with reset_on_fault as a fresh one, with no
+// remainder left from the motion it had.
+TEST(MomentumProjection, ResetOnFaultClearsTheRemainder) {
+  const Model model = load_shared_model("anymal_b", true);
+  StepOptions o = options(Precision::Float, true);
+  o.reset_on_fault = true;
+  Simulator sim(model, 1, o, leg_drives(model));
+  Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
+  v0.head<6>() << 0.3, -0.2, 0.1, 0.5, -1.0, 2.0;
+  sim.set_state(0, stance(model), v0);
+  sim.step(100);
+  ASSERT_GT(sim.snapshot(0).momentum_remainder.norm(), 0);
+  Eigen::VectorXd tau = Eigen::VectorXd::Zero(model.nv);
+  tau[8] = std::nan("");
+  sim.set_torque(0, tau);
+  sim.step();
+  EXPECT_EQ(sim.fault(0), Fault::NonFiniteTorque);
+  EXPECT_TRUE(same_bits(sim.v(0), v0.cast<float>().cast<double>())) << "restarted";
+  EXPECT_EQ(sim.snapshot(0).momentum_remainder.norm(), 0);
+}
+
 // anymal_b standing on the ground under PD: the momentum changes by
 // h m g plus the contacts' impulses on its feet (Simulator::contacts), to
 // rounding, while it stands as well as without the projection.
