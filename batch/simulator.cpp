@@ -361,7 +361,14 @@ std::vector<StiffDrive> Simulator::stiff_drives() const {
 
 std::vector<std::string> Simulator::warnings() const {
   std::vector<std::string> lines;
-  for (std::string line : {describe_stiff_drives(*model_, stiff_drives(), options_.substeps), unenforced_mimics()})
+  std::string fast_modes;
+  if (options_.integrator != Integrator::SemiImplicitEuler && copies() > 0) {
+    const double bound = options_.integrator == Integrator::RK4 ? kRk4Bound : kTrapezoidRingBound;
+    fast_modes = describe_fast_joint_modes(
+        *model_, fast_joint_modes(*model_, dofs_, q(0), options_.dt / options_.substeps, bound), options_.integrator);
+  }
+  for (std::string line : {describe_stiff_drives(*model_, stiff_drives(), options_.substeps), fast_modes,
+                           unenforced_mimics()})
     if (!line.empty()) lines.push_back(std::move(line));
   lines.insert(lines.end(), pairs_.notes.begin(), pairs_.notes.end());
   return lines;

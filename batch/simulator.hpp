@@ -189,8 +189,9 @@ class Simulator {
   // else none.
   std::vector<StiffDrive> stiff_drives() const;
   // What the plan warns of, one line each (describe_plan indents them,
-  // `lockstep rollout` prints them on stderr): the stiff drives above, and
-  // the model's mimic tags, which the step does not enforce yet (each such
+  // `lockstep rollout` prints them on stderr): the stiff drives above; with
+  // RK4 or the trapezoid, the DOFs too stiff for its step at copy 0's
+  // configuration (fast_joint_modes); the model's mimic tags, which the step does not enforce yet (each such
   // DOF moves on its own), and mesh shapes, which take no part in contacts
   // (ContactPairs::notes). Empty when there is nothing to say.
   std::vector<std::string> warnings() const;

@@ -39,7 +39,7 @@ StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int co
       needed_source(needed.m), need(joint_rows), violated(joint_rows),
       column_built(columns), new_columns(columns), held_coupling(static_cast<std::size_t>(columns) * needed.m),
       dof_velocity(columns), dof_displacement(columns), held_speed(columns), momentum_target(km.nbody),
-      momentum_added(km.nbody), articulation_mass(km.nbody) {}
+      momentum_added(km.nbody), articulation_mass(km.nbody), command_sum(km.nv), passive_sum(km.nv) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -274,14 +274,32 @@ lane::scalar_t<L> StepEngine<L>::gyroscopic_weight(T h) const {
   return options_.implicit_gyroscopic && options_.integrator != Integrator::RK4 ? T(0.5) * h : T(0);
 }
 
+// The weight w of the joint effects' implicit part (drives, damping,
+// springs, soft limits: (M + w kd + w^2 kp) a = f(q + w v, v)). Semi-implicit
+// Euler: backward Euler, w = h. Trapezoid: the implicit trapezoidal rule
+// (Crank-Nicolson), w = h/2 with the force taken once at (q0, v0) for both
+// of Heun's accelerations: for constant M that is exactly the trapezoidal
+// rule on the linear joint forces, second order and A-stable, beside
+// Heun's explicit rule for the rest. RK4 evaluates the plain equations of
+// motion at its stages: w = 0, explicit, fourth order (stiff gains then
+// need h below about 2.8 / the drive's frequency, as for any explicit rule).
+template <class L>
+lane::scalar_t<L> StepEngine<L>::joint_term_weight(T h) const {
+  switch (options_.integrator) {
+    case Integrator::Trapezoid: return T(0.5) * h;
+    case Integrator::RK4: return T(0);
+    default: return h;
+  }
+}
+
 template <class L>
 void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
-                                      JointTermInputs<T> terms_in, Scratch& s) {
+                                      JointTermInputs<T> terms_in, JointTerms joint_terms, Scratch& s) {
   joint_transforms<L>(km_, q, s.ws);
   if (plan_.wrenches) world_transforms<L>(km_, s.ws);
   terms_in.q = q;
   terms_in.v = v;
-  joint_term_prepass<L>(km_, jm_, h, terms_in, s.terms);
+  if (joint_terms == JointTerms::AtThisState) joint_term_prepass<L>(km_, jm_, joint_term_weight(h), terms_in, s.terms);
   BlockInputs<T> at = in;
   at.q = q;
   at.v = v;
@@ -358,7 +376,7 @@ void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
     s.clock.lap(&StepProfile::dynamics);
     return;
   }
-  free_acceleration(q, v, h, in, tau_ff, terms_in, s);
+  free_acceleration(q, v, h, in, tau_ff, terms_in, JointTerms::AtThisState, s);
   // u1 with the Free joints' linear velocities in the frame at the start of
   // the step (add_frame_turn_rate); back into the body frame at the end.
   for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(h), s.qacc[k], s.u0[k]);
@@ -465,7 +483,9 @@ lane::scalar_t<L> StepEngine<L>::position_velocity(const Scratch& s, T h, T* vel
 // The trapezoidal rule's velocity, explicit (Heun): the acceleration a1 at
 // (q0, v0) is in s.qacc and v0 + h a1 in s.u1; a2 at the Euler predictor
 // (q0 (+) h v0, v0 + h a1) joins it, v1 = v0 + h (a1 + a2) / 2. With
-// positions moved by (v0 + v1) / 2 the step is second order.
+// positions moved by (v0 + v1) / 2 the step is second order. Both take the
+// joint effects found at (q0, v0) with weight h/2 (joint_term_weight): their
+// part is the implicit trapezoidal rule's.
 template <class L>
 void StepEngine<L>::heun_velocity(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in,
                                   const T* q0, T h, Scratch& s) {
@@ -483,7 +503,7 @@ void StepEngine<L>::heun_velocity(const BlockInputs<T>& in, const T* tau_ff, con
   add_frame_turn_rate<L>(km_, terms_in.v, a1, gyroscopic_weight(h), T(1), a1);
   integrate<L>(km_, q0, terms_in.v, h, q_predicted);
   turn_free_linear<L>(km_, terms_in.v, h, v_predicted, Turn::ToEnd);
-  free_acceleration(q_predicted, v_predicted, h, in, tau_ff, terms_in, s);
+  free_acceleration(q_predicted, v_predicted, h, in, tau_ff, terms_in, JointTerms::AsFound, s);
   T* a2 = fields(s.qacc);
   add_frame_turn_rate<L>(km_, v_predicted, a2, gyroscopic_weight(h), T(1), a2);
   turn_free_linear<L>(km_, terms_in.v, h, a2, Turn::ToStart);
@@ -492,8 +512,9 @@ void StepEngine<L>::heun_velocity(const BlockInputs<T>& in, const T* tau_ff, con
 }
 
 // Classic RK4 on (q, v) with the joint effects evaluated at every stage
-// (RaiSim: steps 1-4 at the state of the stage); positions move on the
-// manifold from q0 by the stage velocities.
+// (RaiSim: steps 1-4 at the state of the stage), explicitly; positions move
+// on the manifold from q0 by the stage velocities. s.terms ends with the
+// stages' forces averaged by RK4's weights: what acted over the step.
 template <class L>
 void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in,
                               const T* q0, T h, T* q_out, Scratch& s) {
@@ -505,10 +526,12 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
   T* vsum = fields(s.v_sum);
   T* asum = fields(s.a_sum);
   // stage 1 at (q0, v0)
-  free_acceleration(q0, v0, h, in, tau_ff, terms_in, s);
+  free_acceleration(q0, v0, h, in, tau_ff, terms_in, JointTerms::AtThisState, s);
   for (int k = 0; k < nv; ++k) {
     lane::store(s.u0[k], vsum + k * W);
     lane::store(s.qacc[k], asum + k * W);
+    s.command_sum[k] = s.terms.command[k];
+    s.passive_sum[k] = s.terms.passive[k];
   }
   const T fractions[3] = {T(0.5) * h, T(0.5) * h, h};
   const T weights[3] = {T(2), T(2), T(1)};
@@ -519,7 +542,7 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
     // q at the stage from the previous stage's velocity, then v likewise
     integrate<L>(km_, q0, previous, c, qs);
     for (int k = 0; k < nv; ++k) lane::store(lane::fmadd(L(c), s.qacc[k], s.u0[k]), vs + k * W);
-    free_acceleration(qs, vs, h, in, tau_ff, terms_in, s);
+    free_acceleration(qs, vs, h, in, tau_ff, terms_in, JointTerms::AtThisState, s);
     // The positions move with the world velocities of the stages, R_s v_s,
     // expressed at q0 (turn_free_linear): the velocities themselves are
     // integrated in body coordinates, where the accelerations are.
@@ -529,10 +552,17 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
     for (int k = 0; k < nv; ++k) {
       lane::store(lane::fmadd(w, lane::load<L>(vs + k * W), lane::load<L>(vsum + k * W)), vsum + k * W);
       lane::store(lane::fmadd(w, s.qacc[k], lane::load<L>(asum + k * W)), asum + k * W);
+      s.command_sum[k] = lane::fmadd(w, s.terms.command[k], s.command_sum[k]);
+      s.passive_sum[k] = lane::fmadd(w, s.terms.passive[k], s.passive_sum[k]);
     }
   }
   const T sixth = h / T(6);
-  for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(sixth), lane::load<L>(asum + k * W), s.u0[k]);
+  const L one_sixth(T(1) / T(6));
+  for (int k = 0; k < nv; ++k) {
+    s.u1[k] = lane::fmadd(L(sixth), lane::load<L>(asum + k * W), s.u0[k]);
+    s.terms.command[k] = one_sixth * s.command_sum[k];
+    s.terms.passive[k] = one_sixth * s.passive_sum[k];
+  }
   integrate<L>(km_, q0, vsum, sixth, q_out);
 }
 

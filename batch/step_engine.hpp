@@ -131,6 +131,8 @@ class StepEngine final : public Simulator::Engine {
     // mass
     std::vector<Vec3<L>> momentum_target, momentum_added;  // (nbody)
     std::vector<L> articulation_mass;      // (nbody)
+    // rk4_block's sums of the stages' joint forces, by RK4's weights (nv)
+    std::vector<L> command_sum, passive_sum;
     // carried from begin_block to end_block
     L input_fault;
     bool solving = false;      // the block has rows to solve this step
@@ -153,9 +155,12 @@ class StepEngine final : public Simulator::Engine {
   void begin_block(int block, T h, Scratch& s);
   void end_block(int block, T h, bool first_run, Scratch& s);
   T gyroscopic_weight(T h) const;
-  // ABA with the joint effects at (q, v): s.qacc. Needs nothing prepared.
+  T joint_term_weight(T h) const;
+  // ABA with the joint effects (s.terms) found at (q, v), or as an earlier
+  // call found them: s.qacc. Needs nothing prepared.
+  enum class JointTerms { AtThisState, AsFound };
   void free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
-                         JointTermInputs<T> terms_in, Scratch& s);
+                         JointTermInputs<T> terms_in, JointTerms joint_terms, Scratch& s);
   // RK4 for scenes without rows: v1 in s.u1, q1 written to q_out.
   void rk4_block(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in, const T* q0, T h,
                  T* q_out, Scratch& s);

@@ -3,6 +3,7 @@
 #include "batch/copy_dynamics.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 
 namespace lockstep {
@@ -23,6 +24,41 @@ std::vector<StiffDrive> stiff_drives(const Model& model, const std::vector<DofSe
   auto stiffer = [](const StiffDrive& a, const StiffDrive& b) { return a.ratio > b.ratio; };
   std::stable_sort(stiff.begin(), stiff.end(), stiffer);
   return stiff;
+}
+
+std::vector<StiffDrive> fast_joint_modes(const Model& model, const std::vector<DofSettings>& dofs,
+                                         const Eigen::VectorXd& q, double h, double bound) {
+  std::vector<StiffDrive> fast;
+  const Eigen::VectorXd inertia = CopyDynamics(model).mass_matrix(q).diagonal();
+  for (int k = 0; k < model.nv; ++k) {
+    const DofSettings& d = dofs[k];
+    const bool acceleration = d.drive_type == DriveType::Acceleration;
+    // per unit of the joint's inertia: s^2 + b s + c = 0
+    const double b = (acceleration ? d.drive_damping : d.drive_damping / inertia[k]) + d.damping / inertia[k];
+    const double c = (acceleration ? d.drive_stiffness : d.drive_stiffness / inertia[k]) + d.spring_stiffness / inertia[k];
+    const double discriminant = b * b - 4 * c;
+    const double largest = discriminant >= 0 ? 0.5 * (b + std::sqrt(discriminant)) : std::sqrt(c);
+    if (h * largest > bound) fast.push_back({k, h * largest});
+  }
+  auto larger = [](const StiffDrive& a, const StiffDrive& b) { return a.ratio > b.ratio; };
+  std::stable_sort(fast.begin(), fast.end(), larger);
+  return fast;
+}
+
+std::string describe_fast_joint_modes(const Model& model, const std::vector<StiffDrive>& fast, Integrator integrator) {
+  if (fast.empty()) return {};
+  const bool rk4 = integrator == Integrator::RK4;
+  std::ostringstream out;
+  out.precision(3);
+  out << (rk4 ? "RK4 takes drives, springs and damping explicitly, and "
+              : "the trapezoid takes drives, springs and damping by the implicit trapezoidal rule, and ")
+      << fast.size() << " DOF(s) are too stiff for its step (h |lambda| " << fast.front().ratio << " at "
+      << model.dof_name[fast.front().dof]
+      << (rk4 ? ", diverging above about 2.8)" : ", ringing from step to step above about 18)")
+      << ": lower the gains or dt, or use " << (rk4 ? "the semi-implicit Euler or trapezoid integrator, which take "
+                                                    "them implicitly"
+                                                  : "semi-implicit Euler, which damps them");
+  return out.str();
 }
 
 std::string describe_stiff_drives(const Model& model, const std::vector<StiffDrive>& stiff, int substeps) {

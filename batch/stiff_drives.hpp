@@ -19,6 +19,7 @@ struct StiffDrive {
   // kp h^2 / M_kk (force drives) or kp h^2 (acceleration drives): the
   // implicit drive's inertia against the joint's own. Above 1, one step
   // closes more than half of the position error of the joint alone.
+  // (fast_joint_modes: h |lambda| instead.)
   double ratio = 0.0;
 };
 
@@ -31,5 +32,23 @@ std::vector<StiffDrive> stiff_drives(const Model& model, const std::vector<DofSe
 // One line, without indent or newline, for Simulator::describe_plan and the
 // command-line tool's warnings; empty when no drive is stiff.
 std::string describe_stiff_drives(const Model& model, const std::vector<StiffDrive>& stiff, int substeps);
+
+// The DOFs whose drive, spring and damping give the joint alone a mode
+// faster than the step can follow: h |lambda| above `bound` at
+// configuration q (|lambda| the larger root of M_kk s^2 + (kd + c) s +
+// (kp + k_spring), or of s^2 + kd s + kp for Acceleration drives), with
+// ratio = h |lambda|, the largest first. RK4 takes those forces explicitly
+// and diverges above about 2.8 (kRk4Bound); the trapezoid takes them by
+// the implicit trapezoidal rule, whose error on such a mode changes sign
+// every step and shrinks by less than a fifth per step above 18
+// (kTrapezoidRingBound: (x/2 - 1) / (x/2 + 1) > 0.8). docs/stability.md
+// section 7.
+constexpr double kRk4Bound = 2.78;  // RK4's stability interval on the negative real axis: [-2.785, 0]
+constexpr double kTrapezoidRingBound = 18.0;
+std::vector<StiffDrive> fast_joint_modes(const Model& model, const std::vector<DofSettings>& dofs,
+                                         const Eigen::VectorXd& q, double h, double bound);
+// One line as above for the integrator that meets them (RK4 or the
+// trapezoid); empty when there are none.
+std::string describe_fast_joint_modes(const Model& model, const std::vector<StiffDrive>& fast, Integrator integrator);
 
 }  // namespace lockstep

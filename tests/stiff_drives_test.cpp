@@ -74,5 +74,86 @@ TEST(StiffDrives, ThePlanNamesThemBesideHardLimitsOnly) {
   EXPECT_EQ(plan_text(free, 1).find("stiff drives"), std::string::npos) << plan_text(free, 1);
 }
 
+// Joint modes too fast for the step. The wheel's drive, kp 400 and kd 1 on
+// I = 0.01, is an underdamped mode of |lambda| = sqrt(kp / I) = 200 rad/s:
+// h |lambda| = 2 at h = 0.01 (within RK4's bound, about 2.8) and 4 at
+// h = 0.02. With damping 10 more, b = 1100 / s and c = 4e4 / s^2: the fast
+// real root (b + sqrt(b^2 - 4c)) / 2 = 1062 / s, h |lambda| 10.6 at 0.01.
+// RK4, which takes them explicitly, is warned exactly where it diverges:
+// the warned cases fault within 2 s, the other holds the wheel on its
+// target. The trapezoid (implicit trapezoidal rule) stays bounded at any
+// gain but rings: kp 1e5, kd 2 sqrt(kp I) = 63 (critical) gives a double
+// root at 3162 / s, h |lambda| 31.6 at 0.01, and an error that changes
+// sign every step and shrinks towards (x/2 - 1) / (x/2 + 1) = 0.88 per
+// step (the double root's n z^n: 0.91 after 40 steps, 0.013 rad left of
+// the 0.5 rad); warned, while semi-implicit Euler settles it exactly and
+// says nothing.
+TEST(StiffDrives, Rk4AndTheTrapezoidWarnOfModesTooFastForTheirStep) {
+  const Model wheel = spinner(kInertia);
+  const Eigen::VectorXd q = Eigen::VectorXd::Zero(1);
+  std::vector<DofSettings> damped = driven(wheel, DriveType::Force, 400.0);
+  damped[0].damping = 10.0;
+  struct Case {
+    std::vector<DofSettings> dofs;
+    double h, ratio;
+  };
+  const Case cases[] = {{driven(wheel, DriveType::Force, 400.0), 0.01, 0.0},
+                        {driven(wheel, DriveType::Force, 400.0), 0.02, 4.0},
+                        {damped, 0.01, 10.6235}};
+  auto run = [&](Integrator integrator, const std::vector<DofSettings>& dofs, double h) {
+    StepOptions o;
+    o.dt = h;
+    o.integrator = integrator;
+    o.precision = Precision::Double;
+    Simulator sim(wheel, 1, o, dofs);
+    sim.set_drive_target(0, Eigen::VectorXd::Constant(1, 0.5), Eigen::VectorXd::Zero(1));
+    sim.step(static_cast<int>(std::lround(2.0 / h)));
+    return sim;
+  };
+  for (const Case& c : cases) {
+    const std::vector<StiffDrive> fast = fast_joint_modes(wheel, c.dofs, q, c.h, kRk4Bound);
+    const Simulator sim = run(Integrator::RK4, c.dofs, c.h);
+    const std::vector<std::string> warnings = sim.warnings();
+    if (c.ratio == 0) {
+      EXPECT_TRUE(fast.empty()) << "h " << c.h;
+      EXPECT_TRUE(warnings.empty()) << warnings.front();
+      EXPECT_EQ(sim.fault(0), Fault::None);
+      EXPECT_NEAR(sim.q(0)[0], 0.5, 1e-3);
+      continue;
+    }
+    ASSERT_EQ(fast.size(), 1u) << "h " << c.h;
+    EXPECT_NEAR(fast[0].ratio, c.ratio, 1e-4);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("RK4 takes drives, springs and damping explicitly"), std::string::npos) << warnings[0];
+    EXPECT_EQ(sim.fault(0), Fault::NonFiniteState) << "h " << c.h << ": diverged";
+  }
+  std::vector<DofSettings> stiff = driven(wheel, DriveType::Force, 1e5);
+  stiff[0].drive_damping = 2 * std::sqrt(1e5 * kInertia);
+  const std::vector<StiffDrive> ringing = fast_joint_modes(wheel, stiff, q, 0.01, kTrapezoidRingBound);
+  ASSERT_EQ(ringing.size(), 1u);
+  EXPECT_NEAR(ringing[0].ratio, 31.6228, 1e-4);
+  StepOptions o;
+  o.dt = 0.01;
+  o.integrator = Integrator::Trapezoid;
+  o.precision = Precision::Double;
+  Simulator trapezoid(wheel, 1, o, stiff);
+  trapezoid.set_drive_target(0, Eigen::VectorXd::Constant(1, 0.5), Eigen::VectorXd::Zero(1));
+  trapezoid.step(37);
+  double error[3];
+  for (double& e : error) trapezoid.step(), e = trapezoid.q(0)[0] - 0.5;
+  EXPECT_LT(error[0] * error[1], 0) << "rings";
+  EXPECT_LT(error[1] * error[2], 0) << "rings";
+  EXPECT_GT(std::abs(error[2]), 1e-2) << "after 0.4 s, where the drive's own time constant is 0.3 ms";
+  EXPECT_LT(std::abs(error[2]), 0.5) << "bounded";
+  ASSERT_EQ(trapezoid.warnings().size(), 1u);
+  EXPECT_NE(trapezoid.warnings()[0].find("the trapezoid takes drives, springs and damping by the implicit trapezoidal "
+                                         "rule, and 1 DOF(s) are too stiff"),
+            std::string::npos)
+      << trapezoid.warnings()[0];
+  const Simulator euler = run(Integrator::SemiImplicitEuler, stiff, 0.01);
+  EXPECT_TRUE(euler.warnings().empty()) << euler.warnings().front();
+  EXPECT_NEAR(euler.q(0)[0], 0.5, 1e-9) << "settled";
+}
+
 }  // namespace
 }  // namespace lockstep::test
