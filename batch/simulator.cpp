@@ -174,8 +174,9 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
               where + "conserve_linear_momentum needs a floating base without damping or armature");
     if (!one_dof) {
       require(d.spring_stiffness == 0, where + "springs act on revolute and prismatic joints only");
-      require(d.limit_stiffness == 0 || (std::isinf(d.lower) && std::isinf(d.upper)),
-              where + "limits act on revolute and prismatic joints only");
+      require(std::isinf(d.lower) && std::isinf(d.upper),
+              where + "position limits act on revolute and prismatic joints only (got " + std::to_string(d.lower) +
+                  " to " + std::to_string(d.upper) + ")");
       require(d.friction == 0 || type == JointType::Spherical,
               where + "friction acts on revolute, prismatic and spherical joints only");
       require(d.friction == 0 || d.friction_model == FrictionModel::Coulomb,
@@ -457,14 +458,19 @@ void Simulator::checked_configuration(const Eigen::VectorXd& q, const char* what
   out = q;  // no allocation once out has nq entries
   for (int i = 0; i < q.size(); ++i)
     require(std::isfinite(q[i]), [&] { return std::string(what) + ": entry " + std::to_string(i) + " is not finite"; });
+  normalize_quaternions(out, what, true);
+}
+
+void Simulator::normalize_quaternions(Eigen::VectorXd& q, const char* what, bool free_joints) const {
   for (int b = 0; b < model_->nbody; ++b) {
     const JointType type = model_->body_joint[b];
-    if (type != JointType::Free && type != JointType::Spherical) continue;
+    if (type != JointType::Spherical && !(free_joints && type == JointType::Free)) continue;
     const int at = model_->body_q_offset[b] + (type == JointType::Free ? 3 : 0);
-    const double norm = out.segment<4>(at).norm();
+    const double norm = q.segment<4>(at).norm();
+    if (!std::isfinite(norm)) continue;  // a drive target's: it faults its copy in the step
     require(norm > 1e-9,
             [&] { return std::string(what) + ": the quaternion of joint " + model_->joint_name[b] + " is zero"; });
-    out.segment<4>(at) /= norm;
+    q.segment<4>(at) /= norm;
   }
 }
 
@@ -580,8 +586,13 @@ void Simulator::set_drive_target(int copy, const Eigen::VectorXd& q_target, cons
            std::to_string(q_target.size());
   });
   check_velocity(v_target, "set_drive_target v_target");
+  // a spherical joint's error is the rotation to a unit target (a Free
+  // joint takes no drive: its target is not read)
+  Eigen::VectorXd& unit = configuration_;
+  unit = q_target;
+  normalize_quaternions(unit, "set_drive_target q_target", false);
   visit([&](auto& b) {
-    b.target_q.set(copy, q_target);
+    b.target_q.set(copy, unit);
     b.target_v.set(copy, v_target);
   });
 }
@@ -862,7 +873,13 @@ double Simulator::energy(int copy) const {
   BatchArray<double> kinetic = dynamics.make_array(1, 1), potential = dynamics.make_array(1, 1);
   dynamics.kinetic_energy(one, kinetic);
   dynamics.potential_energy(one, potential);
-  return kinetic.at(0, 0) + potential.at(0, 0);
+  // the kinetic energy holds the model's armature: the copy's own instead
+  double armature_change = 0;
+  visit([&](auto& b) {
+    const Eigen::VectorXd armature = b.armature.get(copy), v = b.state.v.get(copy);
+    for (int k = 0; k < model_->nv; ++k) armature_change += 0.5 * (armature[k] - model_->dof_armature[k]) * v[k] * v[k];
+  });
+  return kinetic.at(0, 0) + armature_change + potential.at(0, 0);
 }
 
 }  // namespace lockstep

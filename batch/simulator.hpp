@@ -252,7 +252,8 @@ class Simulator {
   void body_contact_forces(int copy, double* forces) const;
   ContactOverflow contact_overflow(int copy) const;
   // Mechanical energy (kinetic + gravity potential) of one copy, in double,
-  // with the copy's inertial parameters and gravity.
+  // with the copy's inertial parameters, armature (1/2 a_k v_k^2 each: what
+  // the step conserves) and gravity.
   double energy(int copy) const;
 
   // The storage, for bulk reads and writes; T must be the chosen precision.
@@ -305,6 +306,9 @@ class Simulator {
   void note_own_joint_parameters(int copy, unsigned fields);
   // out = q with every quaternion normalised; throws on a zero or non-finite one.
   void checked_configuration(const Eigen::VectorXd& q, const char* what, Eigen::VectorXd& out) const;
+  // Each Spherical (and with free_joints each Free) joint's quaternion in q
+  // to unit length; a zero one is refused, a non-finite one left as it is.
+  void normalize_quaternions(Eigen::VectorXd& q, const char* what, bool free_joints) const;
   template <class F>
   decltype(auto) visit(F&& f) const;
   // f(const Contact&) for each contact of the copy's last step (the caller

@@ -94,9 +94,14 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
   for (int b = 0; b < km.nbody; ++b) {
     const JointType type = km.body_joint[b];
     const int qo = km.body_q_offset[b], k0 = km.body_dof_offset[b];
-    if (type == JointType::Free) {  // the root takes no drive, spring or limit
-      for (int k = k0; k < k0 + 6; ++k)
+    if (type == JointType::Free) {  // the root takes no drive, spring or limit; damping on its body-frame twist
+      for (int k = k0; k < k0 + 6; ++k) {
         pd_out[k] = zero, pd_implicit_out[k] = zero, passive_out[k] = zero, passive_implicit_out[k] = zero;
+        if (!jm.damping) continue;
+        const L c = lane::load<L>(in.joint_damping + k * W);
+        passive_out[k] = -(c * lane::load<L>(in.v + k * W));
+        passive_implicit_out[k] = h * c;
+      }
       continue;
     }
     const bool spherical = type == JointType::Spherical;

@@ -212,6 +212,15 @@ TEST_P(Identities, KineticEnergyIsQuadraticFormOfMassMatrix) {
   const double T = dyn_->kinetic_energy(q, v);
   EXPECT_NEAR(T, 0.5 * v.dot(dyn_->mass_matrix(q) * v), 1e-12 * (1.0 + T));
   EXPECT_GT(T, 0.0);
+  // with armature on every DOF (rotor inertia, in M's diagonal): it once
+  // left T while M took it
+  Model geared = model_;
+  const Eigen::VectorXd armature = Eigen::VectorXd::LinSpaced(model_.nv, 0.01, 0.2);
+  geared.dof_armature.assign(armature.data(), armature.data() + model_.nv);
+  const CopyDynamics with_armature(geared, Precision::Double);
+  const double Tg = with_armature.kinetic_energy(q, v);
+  EXPECT_NEAR(Tg, 0.5 * v.dot(with_armature.mass_matrix(q) * v), 1e-12 * (1.0 + Tg));
+  EXPECT_NEAR(Tg - T, 0.5 * armature.dot(v.cwiseAbs2()), 1e-12 * (1.0 + Tg));
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedModels, HolonomicIdentities, ::testing::ValuesIn(test::fixed_model_cases()),
