@@ -1,7 +1,9 @@
 // The joint effects of one simulation step over a block: PD drives, joint
 // damping, springs, spring-damper limits and smooth (Stribeck) friction.
 //
-// Every stiff term is integrated implicitly (backward Euler): it is
+// Every stiff term is integrated implicitly (backward Euler; dt below is the
+// weight the integrator passes, StepEngine::joint_term_weight: the step h
+// for semi-implicit Euler, h/2 for the trapezoid, 0 for RK4): it is
 // evaluated at the end of the step, q1 = q0 + dt v1, v1 = v0 + dv, so for a
 // force k (q_ref - q) + c (v_ref - v) the step sees
 //   explicit part  k (q_ref - q0 - dt v0) + c (v_ref - v0),
@@ -12,7 +14,8 @@
 // An Acceleration drive scales both parts by the joint's articulated inertia
 // D = S^T IA S + armature, known only inside ABA; so does the effort clamp,
 // which bounds feedforward + explicit PD together (RaiSim step 1). Passive
-// terms are added after the clamp and never clipped.
+// terms are added after the clamp and never clipped. Stribeck friction is
+// explicit, but for its linear ramp below the fall-off velocity, a damper.
 #pragma once
 
 #include "kernels/configuration.hpp"
@@ -151,9 +154,15 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
           passive = passive + lane::select(active, lane::fnmadd(cl, v, kl * push), zero);
           passive_implicit = passive_implicit + lane::select(active, lane::fmadd(h2, kl, h * cl), zero);
         }
-        if (jm.stribeck)
-          passive = passive + stribeck_friction(v, L(jm.coulomb[k]), L(jm.stiction_extra[k]), L(jm.falloff_velocity[k]),
-                                                L(jm.stribeck_velocity[k]));
+        if (jm.stribeck) {
+          const L coulomb(jm.coulomb[k]), extra(jm.stiction_extra[k]), falloff(jm.falloff_velocity[k]);
+          passive = passive + stribeck_friction(v, coulomb, extra, falloff, L(jm.stribeck_velocity[k]));
+          // below the fall-off velocity the force is the linear ramp -(peak /
+          // falloff) v, a damper: implicit like one, or a light joint
+          // chatters across zero once h peak / (falloff I) passes 2
+          const L ramp_damping = (coulomb + extra) / falloff;
+          passive_implicit = passive_implicit + lane::select(lane::abs(v) < falloff, h * ramp_damping, zero);
+        }
       }
       pd_out[k] = pd, pd_implicit_out[k] = pd_implicit, passive_out[k] = passive;
       passive_implicit_out[k] = passive_implicit;

@@ -358,16 +358,26 @@ TEST(Simulator, SphericalDriveTargetIsTakenAtUnitLength) {
   }
 }
 
-// The Stribeck force: a linear ramp to the static peak below the fall-off
-// velocity, the Coulomb force plus a Gaussian fall-off of the extra above.
-TEST(Simulator, StribeckFrictionFollowsItsCurve) {
-  const Model model = spinner(0.1);
-  std::vector<DofSettings> dofs = default_dof_settings(model);
+// A spinner's Stribeck friction: Coulomb 1, peak 1.5 below the fall-off
+// velocity 0.01, Stribeck velocity 0.1.
+std::vector<DofSettings> stribeck_dofs(const Model& spinner) {
+  std::vector<DofSettings> dofs = default_dof_settings(spinner);
   dofs[0].friction = 1.0;
   dofs[0].friction_model = FrictionModel::Stribeck;
   dofs[0].stiction_extra = 0.5;
   dofs[0].falloff_velocity = 0.01;
   dofs[0].stribeck_velocity = 0.1;
+  return dofs;
+}
+
+// The Stribeck force: a linear ramp to the static peak below the fall-off
+// velocity, the Coulomb force plus a Gaussian fall-off of the extra above.
+// The ramp is a damper, (peak / falloff) = 150 N m s here, and taken
+// implicitly like one: the step ends at v1 = v0 / (1 + h 150 / I) with the
+// ramp's force at v1; above it the force is the curve's at v0.
+TEST(Simulator, StribeckFrictionFollowsItsCurve) {
+  const Model model = spinner(0.1);
+  const std::vector<DofSettings> dofs = stribeck_dofs(model);
   StepOptions o = double_options(0.001);
   o.record_applied_torque = true;
   Simulator sim(model, 1, o, dofs);
@@ -377,10 +387,33 @@ TEST(Simulator, StribeckFrictionFollowsItsCurve) {
     sim.set_state(0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, v));
     sim.step();
     const double speed = std::abs(v);
-    const double magnitude =
-        speed < 0.01 ? 1.5 * speed / 0.01 : 1.0 + 0.5 * std::exp(-std::pow((speed - 0.01) / 0.1, 2));
+    if (speed < 0.01) {
+      const double v1 = v / (1.0 + o.dt * 150.0 / 0.1);
+      EXPECT_NEAR(sim.v(0)[0], v1, 1e-15) << "v = " << v;
+      EXPECT_NEAR(sim.applied_torque(0).passive[0], -150.0 * v1, 1e-12) << "v = " << v;
+      continue;
+    }
+    const double magnitude = 1.0 + 0.5 * std::exp(-std::pow((speed - 0.01) / 0.1, 2));
     EXPECT_NEAR(sim.applied_torque(0).passive[0], -std::copysign(magnitude, v), 1e-12) << "v = " << v;
   }
+}
+
+// A light joint pushed below its Stribeck friction creeps at the ramp's
+// speed, torque * falloff / peak = 0.5 * 0.01 / 1.5 = 3.33e-3 rad/s. With
+// the ramp explicit, h peak / (falloff I) = 30 on this 0.01 kg m^2 link at
+// dt = 2 ms, far past 2: it chattered between -0.19 and +0.38 rad/s and
+// moved 28 times as far in 2 s.
+TEST(Simulator, StribeckFrictionHoldsALightJointAtItsCreep) {
+  const Model model = spinner(0.01);
+  const std::vector<DofSettings> dofs = stribeck_dofs(model);
+  Simulator sim(model, 1, double_options(0.002), dofs);
+  sim.set_torque(0, Eigen::VectorXd::Constant(1, 0.5));
+  const double creep = 0.5 * 0.01 / 1.5;
+  double fastest = 0;
+  for (int i = 0; i < 1000; ++i) sim.step(), fastest = std::max(fastest, std::abs(sim.v(0)[0]));
+  EXPECT_NEAR(sim.v(0)[0], creep, 1e-9);
+  EXPECT_LE(fastest, creep * (1 + 1e-9)) << "no chatter: it approaches its creep from below";
+  EXPECT_NEAR(sim.q(0)[0], 2.0 * creep, 1e-4);
 }
 
 // A snapshot belongs to its scene: restored into a simulator of another
