@@ -506,21 +506,57 @@ auto copy_parameters(Batch& b) {
                     &b.ground_friction, &b.initial_q, &b.initial_v, &b.fault};
 }
 
+// What Simulator::contacts and contact_overflow report of a copy's last
+// step beside its warm start, in the snapshot's order (empty without
+// contacts).
+template <class Batch>
+auto contact_report(Batch& b) {
+  return std::array{&b.contact_point, &b.contact_normal, &b.contact_separation, &b.contact_count, &b.contact_dropped,
+                    &b.contact_overflow_steps};
+}
+
+template <class Arrays>
+int packed_size(const Arrays& arrays) {
+  int size = 0;
+  for (const auto* a : arrays) size += a->size();
+  return size;
+}
+
+// One copy's entries of several arrays, one after the other.
+template <class Arrays>
+Eigen::VectorXd pack(const Arrays& arrays, int copy) {
+  Eigen::VectorXd packed(packed_size(arrays));
+  int at = 0;
+  for (const auto* a : arrays) {
+    packed.segment(at, a->size()) = a->get(copy);
+    at += a->size();
+  }
+  return packed;
+}
+
+template <class Arrays>
+void unpack(const Eigen::VectorXd& packed, int copy, const Arrays& arrays) {
+  int at = 0;
+  for (auto* a : arrays) {
+    a->set(copy, packed.segment(at, a->size()));
+    at += a->size();
+  }
+}
+
 }  // namespace
 
 CopySnapshot Simulator::snapshot(int copy) const {
   check_copy(copy, "snapshot");
   return visit([&](auto& b) {
-    int size = 0;
-    for (const auto* a : copy_parameters(b)) size += a->size();
-    Eigen::VectorXd parameters(size);
-    int at = 0;
-    for (const auto* a : copy_parameters(b)) {
-      parameters.segment(at, a->size()) = a->get(copy);
-      at += a->size();
-    }
-    return CopySnapshot{b.state.q.get(copy), b.state.v.get(copy), b.impulse.get(copy), b.contact_id.get(copy),
-                        b.contact_impulse.get(copy), b.momentum_remainder.get(copy), parameters, scene_key_};
+    return CopySnapshot{b.state.q.get(copy),
+                        b.state.v.get(copy),
+                        b.impulse.get(copy),
+                        b.contact_id.get(copy),
+                        b.contact_impulse.get(copy),
+                        b.momentum_remainder.get(copy),
+                        pack(copy_parameters(b), copy),
+                        pack(contact_report(b), copy),
+                        scene_key_};
   });
 }
 
@@ -532,17 +568,15 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
                 (s.momentum_remainder.size() == b.momentum_remainder.size() || s.momentum_remainder.size() == 0 ||
                  b.momentum_remainder.size() == 0),
             "restore: the snapshot's sizes do not match this simulator's scene");
-    int size = 0;
-    for (const auto* a : copy_parameters(b)) size += a->size();
-    require(s.parameters.size() == size, "restore: the snapshot's parameters do not match this simulator's scene");
+    require(s.parameters.size() == packed_size(copy_parameters(b)),
+            "restore: the snapshot's parameters do not match this simulator's scene");
+    require(s.contact_report.size() == packed_size(contact_report(b)),
+            "restore: the snapshot's contact report does not match this simulator's scene");
     require(s.scene_key == 0 || s.scene_key == scene_key_,
             "restore: the snapshot was taken from another scene (its model's joints or links, its joint rows "
             "or its contact pairs differ from this simulator's)");
-    int at = 0;
-    for (auto* a : copy_parameters(b)) {
-      a->set(copy, s.parameters.segment(at, a->size()));
-      at += a->size();
-    }
+    unpack(s.parameters, copy, copy_parameters(b));
+    unpack(s.contact_report, copy, contact_report(b));
     b.state.q.set(copy, s.q);
     b.state.v.set(copy, s.v);
     b.impulse.set(copy, s.joint_impulse);
@@ -775,8 +809,11 @@ AppliedTorque Simulator::applied_torque(int copy) const {
 
 void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction) {
   check_copy(copy, "set_ground");
-  require(options_.contacts.ground && contacts_run(),
-          "set_ground: the scene has no ground (ContactSettings::ground) or its contacts are off");
+  require(options_.contacts.ground, "set_ground: the scene has no ground (ContactSettings::ground)");
+  require(contacts_run(), [&] {
+    return "set_ground: the scene's contacts do not run (" + plan_[static_cast<int>(Stage::Contacts)].reason +
+           "), so it keeps no ground per copy";
+  });
   require(std::isfinite(height), "set_ground: height must be finite");
   require(normal.allFinite() && normal.norm() > 1e-9, "set_ground: normal must be a finite non-zero vector");
   require(std::isfinite(friction) && friction >= 0, "set_ground: friction must be finite and >= 0");

@@ -120,11 +120,14 @@ struct Contact {
 // other way round it is dropped), and the
 // copy's inputs and per-copy parameters (torques, wrenches, inertial
 // parameters, gravity, drive targets and gains, joint damping, armature,
-// ground, initial state, fault), in that order in `parameters`. Restoring
-// a snapshot, into this simulator or one built alike, replays the copy bit
-// for bit.
+// ground, initial state, fault), in that order in `parameters`; and what
+// contacts() and contact_overflow() report of its last step (the points'
+// positions, normals and separations, the count, the dropped, the overflow
+// steps), in that order in `contact_report`. Restoring a snapshot, into
+// this simulator or one built alike, replays the copy bit for bit, reports
+// included.
 struct CopySnapshot {
-  Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, momentum_remainder, parameters;
+  Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, momentum_remainder, parameters, contact_report;
   // Simulator::scene_key() of the simulator it came from: restore refuses a
   // snapshot of another scene whose arrays happen to have the same sizes.
   // 0 (a snapshot put together by hand) is not checked.

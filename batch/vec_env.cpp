@@ -73,9 +73,9 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
               "DOF; " +
                   model.dof_name[k] + " (DOF " + std::to_string(k) + ") has " +
                   std::to_string(options_.dofs[k].drive_stiffness));
-  const bool contacts = sim_.plan()[static_cast<int>(Stage::Contacts)].runs;
-  observations_ = Observations(copies, model, contacts);
-  terminal_ = Observations(copies, model, contacts);
+  contacts_ = sim_.plan()[static_cast<int>(Stage::Contacts)].runs;
+  observations_ = Observations(copies, model, contacts_);
+  terminal_ = Observations(copies, model, contacts_);
   reward_out_ = Eigen::VectorXd::Zero(copies);
   terminated_.assign(copies, 0);
   truncated_.assign(copies, 0);
@@ -137,7 +137,9 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
     sim_.set_body_inertia(c, b, scale * m.body_mass[b], com, scale * m.body_inertia[b]);
   }
   const ContactSettings& contact = options_.step.contacts;
-  if (r.randomize_ground_friction && contact.ground)
+  // without contacts running (forced off, or no shape pairs) there is no
+  // ground to give a friction; the other draws do not depend on this one
+  if (r.randomize_ground_friction && contact.ground && contacts_)
     sim_.set_ground(c, contact.ground_height, contact.ground_normal, value(&Randomization::ground_friction, 0));
 
   // the draws go into vectors kept from reset to reset: a reset allocates nothing

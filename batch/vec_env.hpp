@@ -181,6 +181,7 @@ class VecEnv {
   std::vector<int> action_field_;  // per action column: its field of tau (Torque) or target_q (PositionTarget)
   Eigen::Isometry3d fixed_base_pose_ = Eigen::Isometry3d::Identity();  // the base when it does not float
   bool ready_ = false;  // reset() was called
+  bool contacts_ = false;  // the contacts stage runs: the copies keep a ground of their own
   RewardFunction reward_;
   Observations observations_, terminal_;
   Eigen::VectorXd reward_out_;

@@ -237,6 +237,43 @@ TEST(ContactPairs, OverflowIsCountedPerCopy) {
   }
 }
 
+// A restored copy reports its snapshot's contacts and overflow, and goes on
+// counting from there: a 0.1 m box on the ground keeps 2 of its 4 corner
+// points (capacity 2) and drops 2 every step. Restored into a copy that was
+// in the air, that copy once paired the snapshot's warm start with its own
+// stale points and normals (zero normals, friction-only forces) and kept
+// its own overflow count.
+TEST(ContactPairs, RestoreCarriesTheContactReport) {
+  const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0);
+  StepOptions o;
+  o.contacts.ground = true;
+  o.contacts.capacity = 2;
+  Simulator sim(model, 2, o);
+  sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, 0.1)), Eigen::VectorXd::Zero(6));
+  sim.set_state(1, free_pose(Eigen::Vector3d(3, 0, 5)), Eigen::VectorXd::Zero(6));
+  sim.step(10);
+  ASSERT_EQ(sim.contacts(0).size(), 2u);
+  ASSERT_TRUE(sim.contacts(1).empty());
+  auto expect_same_report = [&](const std::string& when) {
+    const std::vector<Contact> a = sim.contacts(0), b = sim.contacts(1);
+    ASSERT_EQ(a.size(), b.size()) << when;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].point, b[i].point) << when;
+      EXPECT_EQ(a[i].normal, b[i].normal) << when;
+      EXPECT_EQ(a[i].force, b[i].force) << when;
+      EXPECT_EQ(a[i].separation, b[i].separation) << when;
+    }
+    EXPECT_EQ(sim.contact_overflow(0).dropped, sim.contact_overflow(1).dropped) << when;
+    EXPECT_EQ(sim.contact_overflow(0).overflow_steps, sim.contact_overflow(1).overflow_steps) << when;
+  };
+  sim.restore(1, sim.snapshot(0));
+  expect_same_report("after the restore");
+  EXPECT_EQ(sim.contact_overflow(1).overflow_steps, 10);
+  sim.step(5);
+  expect_same_report("5 steps on");
+  EXPECT_EQ(sim.contact_overflow(1).overflow_steps, 15);
+}
+
 // Contact forces per contact and per body: a 2 kg ball resting on the
 // ground presses with 2 g; the body wrench holds the same force.
 TEST(ContactPairs, ForcesPerContactAndPerBody) {

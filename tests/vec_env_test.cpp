@@ -122,6 +122,32 @@ TEST(VecEnv, ContactForcesCarryTheWeightOfAStandingRobot) {
   }
 }
 
+// With the contacts stage forced off (the CLI's --no-contacts) the ground
+// stays in the options but no copy keeps one: a drawn ground friction has
+// nothing to go to, and the other draws are the same as with contacts (each
+// draw is keyed by its field, copy and reset, not by the order of draws).
+// It once stopped every reset with an internal error from set_ground.
+TEST(VecEnv, GroundFrictionDrawWithoutContactsIsSkipped) {
+  VecEnvOptions off = standing_options(anymal());
+  off.step.force(Stage::Contacts, StageMode::Off);
+  VecEnv without(anymal(), 3, off), with(anymal(), 3, standing_options(anymal()));
+  without.reset();
+  with.reset();
+  for (int c = 0; c < 3; ++c) {
+    const CopySnapshot a = without.simulator().snapshot(c), b = with.simulator().snapshot(c);
+    EXPECT_TRUE(test::same_bits(a.q, b.q)) << "copy " << c;
+    EXPECT_EQ(without.simulator().batch<float>().state.inertia.get(c), with.simulator().batch<float>().state.inertia.get(c));
+  }
+  Simulator& sim = without.simulator();
+  try {
+    sim.set_ground(0, 0.0, Eigen::Vector3d::UnitZ(), 1.0);
+    ADD_FAILURE() << "set_ground without contacts running was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("set_ground: the scene's contacts do not run (forced off"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(VecEnv, ResetDrawsEveryParameterInItsRangePerCopyAndPerReset) {
   const VecEnvOptions options = standing_options(anymal());
   VecEnv env(anymal(), 4, options);
