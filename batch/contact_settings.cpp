@@ -24,7 +24,9 @@ void check_surface(const ShapeContact& c, const std::string& where) {
 
 void validate_contact_settings(const Model& model, const ContactSettings& s) {
   const std::string at = "ContactSettings::";
-  require(s.capacity >= 1, at + "capacity must be at least 1, got " + std::to_string(s.capacity));
+  require(s.capacity >= 1 && s.capacity <= kMaxContactCapacity,
+          at + "capacity must lie in [1, " + std::to_string(kMaxContactCapacity) + "] points per copy, got " +
+              std::to_string(s.capacity));
   require(std::isfinite(s.margin) && s.margin >= 0, at + "margin must be finite and >= 0, got " + number(s.margin));
   require(std::isfinite(s.speculative_speed) && s.speculative_speed >= 0,
           at + "speculative_speed must be finite and >= 0, got " + number(s.speculative_speed));

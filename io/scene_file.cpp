@@ -171,8 +171,8 @@ void set_number(const Object& o, const std::string& key, double& out, Bound boun
   o.with(key, [&](const json::Value& v, const At& at) { out = read_number(v, at, bound); });
 }
 
-void set_int(const Object& o, const std::string& key, int& out, int low) {
-  o.with(key, [&](const json::Value& v, const At& at) { out = static_cast<int>(read_integer(v, at, low, INT_MAX)); });
+void set_int(const Object& o, const std::string& key, int& out, int low, int high = INT_MAX) {
+  o.with(key, [&](const json::Value& v, const At& at) { out = static_cast<int>(read_integer(v, at, low, high)); });
 }
 
 void set_bool(const Object& o, const std::string& key, bool& out) {
@@ -455,7 +455,7 @@ void read_contacts(const json::Value& v, const At& at, const Model& model, StepO
   o.with("self_collision", [&](const json::Value& x, const At& a) {
     c.self_collision.assign(read_bool(x, a) ? model.articulations.size() : 0, true);
   });
-  set_int(o, "capacity", c.capacity, 1);
+  set_int(o, "capacity", c.capacity, 1, kMaxContactCapacity);
   set_number(o, "margin", c.margin, Bound::NonNegative);
   set_number(o, "speculative_speed", c.speculative_speed, Bound::NonNegative);
   set_number(o, "stiffness", c.stiffness, Bound::NonNegative);

@@ -166,7 +166,9 @@ TEST(ContactPairs, BadSettingsAreNamed) {
   };
   ContactSettings s;
   s.capacity = 0;
-  fails(s, "capacity");
+  fails(s, "capacity must lie in [1, 256] points per copy, got 0");
+  s.capacity = kMaxContactCapacity + 1;  // its scratch would be gigabytes (or overflow int)
+  fails(s, "capacity must lie in [1, 256] points per copy, got 257");
   s = {};
   s.shapes.assign(model.shapes.size(), ShapeContact{});
   s.shapes[2].friction = -1;

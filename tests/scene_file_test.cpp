@@ -771,6 +771,7 @@ INSTANTIATE_TEST_SUITE_P(
                  {"ground.restitution: must lie in [0, 1]"}},
         BadScene{"layers_out_of_range", R"(, "ground": {"layers": 4294967296})", {"ground.layers: must lie in [0, "}},
         BadScene{"zero_capacity", R"(, "contacts": {"capacity": 0})", {"contacts.capacity: must lie in [1, "}},
+        BadScene{"huge_capacity", R"(, "contacts": {"capacity": 100000})", {"contacts.capacity: must lie in [1, 256]"}},
         BadScene{"box_negative_size", R"(, "boxes": [{"size": [1, -1, 1]}])", {"boxes[0].size[1]: must be > 0"}},
         BadScene{"box_rpy_and_rotation",
                  R"(, "boxes": [{}, {"rpy": [0, 0, 0], "rotation": [[1,0,0],[0,1,0],[0,0,1]]}])",
