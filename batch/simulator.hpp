@@ -72,7 +72,8 @@ struct StepBatch {
   // StepOptions::record_applied_torque: drive (feedforward + PD, with its
   // implicit part), passive (damping, springs, soft limits, Stribeck
   // friction, with their implicit parts), Coulomb friction impulse / dt,
-  // limit impulses / dt. Empty otherwise.
+  // limit impulses / dt; with substeps, the mean over the step's pipeline
+  // runs. Empty otherwise.
   BatchArray<T> applied_drive, applied_passive, applied_friction, applied_limits;
   // Contacts (empty without them): the ground plane n . x = d as (n, d) and
   // its friction; per contact slot the point's candidate number (-1: none,

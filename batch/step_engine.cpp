@@ -424,7 +424,7 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
     integrate<L>(km_, q, velocity, step, q_next);
     turn_free_linear<L>(km_, velocity, step, fields(s.u1), Turn::ToEnd);
   }
-  if (options_.record_applied_torque) record_applied(block, h, s);
+  if (options_.record_applied_torque) record_applied(block, h, first_run, s);
   if (!floating_roots_.empty()) keep_linear_momentum(block, q_next, s);
 
   // Faults: a copy with non-finite inputs or state is flagged; with
@@ -995,29 +995,32 @@ bool StepEngine<L>::end_round(Scratch& s) const {
 
 // RaiSim's torque over the step by source, with dv = v1 - v0:
 // drive tau_cmd - (w_drive / h) dv, passive f - (w_passive / h) dv, and the
-// solver's impulses / h split into friction and limits.
+// solver's impulses / h split into friction and limits. With substeps, the
+// mean over the step's pipeline runs (each adds its share, the first
+// overwrites).
 template <class L>
-void StepEngine<L>::record_applied(int block, T h, Scratch& s) {
+void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km_.nv;
-  const L inv_h(T(1) / h);
+  const L inv_h(T(1) / h), share(T(1) / static_cast<T>(options_.substeps));
   T* drive = batch_.applied_drive.block(block);
   T* passive = batch_.applied_passive.block(block);
   T* friction = batch_.applied_friction.block(block);
   T* limits = batch_.applied_limits.block(block);
+  auto add = [&](T* out, const L& torque, bool first) {
+    lane::store(first ? share * torque : lane::fmadd(share, torque, lane::load<L>(out)), out);
+  };
   for (int k = 0; k < nv; ++k) {
     const L rate = (s.u1[k] - s.u0[k]) * inv_h;
-    lane::store(lane::fnmadd(s.terms.drive_implicit[k], rate, s.terms.command[k]), drive + k * W);
-    lane::store(lane::fnmadd(s.terms.passive_implicit[k], rate, s.terms.passive[k]), passive + k * W);
-    lane::store(L(T(0)), friction + k * W);
-    lane::store(L(T(0)), limits + k * W);
+    add(drive + k * W, lane::fnmadd(s.terms.drive_implicit[k], rate, s.terms.command[k]), first_run);
+    add(passive + k * W, lane::fnmadd(s.terms.passive_implicit[k], rate, s.terms.passive[k]), first_run);
+    if (first_run) lane::store(L(T(0)), friction + k * W), lane::store(L(T(0)), limits + k * W);
   }
   const T* impulse = batch_.impulse.block(block);
   for (std::size_t r = 0; r < row_specs_.size(); ++r) {
     const JointRowSpec<T>& spec = row_specs_[r];
     T* out = (spec.kind == JointRowKind::Friction ? friction : limits) + spec.dof * W;
-    const L torque = s.rows.sigma[r] * lane::load<L>(impulse + r * W) * inv_h;
-    lane::store(lane::load<L>(out) + torque, out);
+    add(out, s.rows.sigma[r] * lane::load<L>(impulse + r * W) * inv_h, false);
   }
 }
 

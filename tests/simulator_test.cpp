@@ -215,8 +215,9 @@ TEST(Simulator, AppliedTorqueBalancesTheEquationOfMotion) {
 // that acted over the step is I (v1 - v0) / dt with every integrator: the
 // report must be the drive and passive forces the step used, averaged as
 // the integrator averaged them (the trapezoid's are taken once with weight
-// h/2, RK4's at four stages by its weights). The report once took the
-// trapezoid's and RK4's last stage instead: 0.125 and 0.081 N m off here.
+// h/2, RK4's at four stages by its weights), and with substeps their mean
+// over the step. The report once took the trapezoid's and RK4's last stage
+// instead (0.125 and 0.081 N m off here), and the last substep's.
 // Asserted to 1e-12 of the torque (double rounding of a few terms).
 TEST(Simulator, AppliedTorqueIsWhatActedWithEveryIntegrator) {
   const Model model = spinner(2.0);
@@ -224,20 +225,23 @@ TEST(Simulator, AppliedTorqueIsWhatActedWithEveryIntegrator) {
   dofs[0].drive_stiffness = 10.0, dofs[0].drive_damping = 1.0;
   dofs[0].damping = 0.5;
   dofs[0].spring_stiffness = 3.0, dofs[0].spring_rest = 0.1;
-  for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::Trapezoid, Integrator::RK4}) {
-    StepOptions o = double_options(0.05);
-    o.integrator = integrator;
-    o.record_applied_torque = true;
-    Simulator sim(model, 1, o, dofs);
-    sim.set_state(0, Eigen::VectorXd::Constant(1, 0.4), Eigen::VectorXd::Constant(1, 1.0));
-    sim.set_drive_target(0, Eigen::VectorXd::Constant(1, -0.2), Eigen::VectorXd::Constant(1, 0.5));
-    sim.set_torque(0, Eigen::VectorXd::Constant(1, 0.7));
-    sim.step();
-    const double acted = 2.0 * (sim.v(0)[0] - 1.0) / o.dt;
-    const AppliedTorque t = sim.applied_torque(0);
-    EXPECT_NEAR(t.drive[0] + t.passive[0], acted, 1e-12 * std::abs(acted)) << integrator_name(integrator);
-    EXPECT_LT(t.passive[0], 0) << "damping and the spring oppose the motion";
-  }
+  for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::Trapezoid, Integrator::RK4})
+    for (int substeps : {1, 3}) {
+      StepOptions o = double_options(0.05);
+      o.integrator = integrator;
+      o.substeps = substeps;
+      o.record_applied_torque = true;
+      Simulator sim(model, 1, o, dofs);
+      sim.set_state(0, Eigen::VectorXd::Constant(1, 0.4), Eigen::VectorXd::Constant(1, 1.0));
+      sim.set_drive_target(0, Eigen::VectorXd::Constant(1, -0.2), Eigen::VectorXd::Constant(1, 0.5));
+      sim.set_torque(0, Eigen::VectorXd::Constant(1, 0.7));
+      sim.step();
+      const double acted = 2.0 * (sim.v(0)[0] - 1.0) / o.dt;
+      const AppliedTorque t = sim.applied_torque(0);
+      EXPECT_NEAR(t.drive[0] + t.passive[0], acted, 1e-12 * std::abs(acted))
+          << integrator_name(integrator) << ", " << substeps << " substeps";
+      EXPECT_LT(t.passive[0], 0) << "damping and the spring oppose the motion";
+    }
 }
 
 // Joint damping on a floating base acts on its body-frame twist, implicitly
