@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstring>
+#include <filesystem>
 
 namespace lockstep {
 
@@ -71,7 +72,7 @@ std::vector<Attribute> run_attributes(const VecEnv& env, const RolloutInfo& info
       {"lockstep_version", std::string(lockstep_version())},
       {"build", build_description()},
       {"scene", info.scene_json},
-      {"model_file", info.model_path},
+      {"model_file", std::filesystem::absolute(info.model_path).lexically_normal().string()},
       {"model_sha256", sha256_file(info.model_path)},
       {"policy", info.policy},
       {"envs", static_cast<std::int64_t>(env.copies())},

@@ -283,6 +283,11 @@ struct RolloutWriter::Impl {
     std::error_code ignored;
     if (std::filesystem::is_directory(path, ignored))
       throw RolloutFileError(path + ": is a directory; the rollout file needs a file name");
+    // the finished file is renamed over `path`: only a regular file may go
+    const std::filesystem::file_status there = std::filesystem::symlink_status(path, ignored);
+    if (std::filesystem::exists(there) && !std::filesystem::is_regular_file(there))
+      throw RolloutFileError(path + ": is not a regular file (a link, device, FIFO or socket), which the rollout file "
+                                    "would replace; give the path of a file");
     const std::string creating = path + ".creating";
     file = create_file(creating, path);
     try {

@@ -86,6 +86,19 @@ Scene short_episode_scene() {
   return scene;
 }
 
+// model_file is the URDF's absolute path, as documented, however the path
+// was given (it was stored as given: relative to wherever the run started).
+TEST(Rollout, ModelFileIsAbsolute) {
+  const TempDir dir;
+  const std::string file = (dir.path / "run.h5").string();
+  Scene scene = short_episode_scene();
+  const std::filesystem::path absolute = std::filesystem::absolute(scene.model_path).lexically_normal();
+  scene.model_path = std::filesystem::relative(absolute).string();
+  ASSERT_TRUE(std::filesystem::path(scene.model_path).is_relative());
+  record(scene, 2, 1, file);
+  EXPECT_EQ(std::get<std::string>(RolloutReader(file).attribute("model_file")), absolute.string());
+}
+
 TEST(Rollout, TheFileHoldsWhatTheEnvironmentDidWithItsSchema) {
   const TempDir dir;
   const std::string file = (dir.path / "run.h5").string();

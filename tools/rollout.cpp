@@ -32,16 +32,22 @@ using Clock = std::chrono::steady_clock;
 std::atomic<bool> stop_requested{false};
 extern "C" void request_stop(int) { stop_requested.store(true); }
 
-// Installs request_stop for SIGINT and SIGTERM; the old handlers come back
-// with the object.
+// Installs request_stop for SIGINT and SIGTERM, and ignores SIGXFSZ: past
+// a file-size limit (ulimit -f) a write then fails with EFBIG, which the
+// writer reports with the file's name (exit 4), where the signal would kill
+// the process without a word. The old handlers come back with the object.
 class StopOnSignal {
  public:
-  StopOnSignal() : old_int_(std::signal(SIGINT, request_stop)), old_term_(std::signal(SIGTERM, request_stop)) {
+  StopOnSignal()
+      : old_int_(std::signal(SIGINT, request_stop)),
+        old_term_(std::signal(SIGTERM, request_stop)),
+        old_xfsz_(std::signal(SIGXFSZ, SIG_IGN)) {
     stop_requested.store(false);
   }
   ~StopOnSignal() {
     std::signal(SIGINT, old_int_);
     std::signal(SIGTERM, old_term_);
+    std::signal(SIGXFSZ, old_xfsz_);
   }
   StopOnSignal(const StopOnSignal&) = delete;
   StopOnSignal& operator=(const StopOnSignal&) = delete;
@@ -49,6 +55,7 @@ class StopOnSignal {
  private:
   void (*old_int_)(int);
   void (*old_term_)(int);
+  void (*old_xfsz_)(int);
 };
 
 struct RolloutConfig {
