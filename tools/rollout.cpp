@@ -97,7 +97,8 @@ RolloutConfig parse_config(const std::vector<std::string>& args) {
   }
   if (const auto* v = parsed.value("--flush-seconds")) {
     c.file.flush_seconds = parse_number("--flush-seconds", *v);
-    if (!(c.file.flush_seconds > 0)) throw UsageError("--flush-seconds must be positive, not \"" + *v + "\"");
+    if (!(c.file.flush_seconds >= 0 && c.file.flush_seconds <= 1e6))  // the writer's own range
+      throw UsageError("--flush-seconds must lie in [0, 1e6] (0: at every step), not \"" + *v + "\"");
   }
   c.floating_base = parsed.has("--floating-base");
   c.ground = parsed.has("--ground");
