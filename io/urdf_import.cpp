@@ -356,6 +356,7 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
     LinkSpec link;
     link.name = prefix + v.link;
     link.shapes = shapes[v.link];
+    link.source_line = links.at(v.link)->GetLineNum();
     const urdf::LinkConstSharedPtr ul = model->getLink(v.link);
     if (ul && ul->inertial) {
       const urdf::Inertial& in = *ul->inertial;
@@ -369,6 +370,7 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
       link.parent = prefix + v.joint->parent;
       JointSpec& j = link.joint;
       j.name = prefix + uj->name;
+      j.source_line = v.joint->element->GetLineNum();
       j.origin = to_eigen(uj->parent_to_joint_origin_transform);
       j.axis = Eigen::Vector3d(uj->axis.x, uj->axis.y, uj->axis.z);
       switch (uj->type) {

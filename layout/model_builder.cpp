@@ -27,12 +27,17 @@ std::string where(const ArticulationSpec& spec) {
   return "articulation '" + spec.name + "'";
 }
 
+// "file:LINE" where the spec came from a file and knows the line
+std::string where(const ArticulationSpec& spec, int line) {
+  return line > 0 && !spec.source.empty() ? spec.source + ":" + std::to_string(line) : where(spec);
+}
+
 std::string link_ctx(const ArticulationSpec& spec, const LinkSpec& link) {
-  return where(spec) + ": link '" + link.name + "'";
+  return where(spec, link.source_line) + ": link '" + link.name + "'";
 }
 
 std::string joint_ctx(const ArticulationSpec& spec, const LinkSpec& link) {
-  return where(spec) + ": joint '" + link.joint.name + "' (to link '" + link.name + "')";
+  return where(spec, link.joint.source_line) + ": joint '" + link.joint.name + "' (to link '" + link.name + "')";
 }
 
 bool finite(const Eigen::Isometry3d& pose) { return pose.matrix().allFinite(); }

@@ -46,6 +46,7 @@ struct JointSpec {
   double friction = 0.0;
   double armature = 0.0;
   MimicSpec mimic;
+  int source_line = 0;  // the joint's line in ArticulationSpec::source, for messages (0: none)
 };
 
 struct LinkSpec {
@@ -54,6 +55,7 @@ struct LinkSpec {
   JointSpec joint;     // the joint from `parent` to this link (ignored for the root)
   InertialSpec inertial;
   std::vector<Shape> shapes;  // body/frame fields are filled in by the builder; pose in the link frame
+  int source_line = 0;        // the link's line in ArticulationSpec::source, for messages (0: none)
 };
 
 struct ArticulationSpec {
