@@ -324,8 +324,8 @@ TEST(UrdfImportError, BuilderRejectionNamesFile) {
   const fs::path file = fs::temp_directory_path() / "lockstep_negative_mass.urdf";
   std::ofstream(file) << chain(R"(<axis xyz="0 1 0"/>)", R"(<inertial><mass value="-1"/>
       <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>)");
-  const std::string name = file.string();
-  EXPECT_MODEL_ERROR(load_urdf(name), (name + ":3: link 'arm'").c_str(), "negative mass");
+  const std::string name = file.string(), where = name + ":3: link 'arm'";
+  EXPECT_MODEL_ERROR(load_urdf(name), where.c_str(), "negative mass");
   fs::remove(file);
 }
 
