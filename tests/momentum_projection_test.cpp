@@ -21,6 +21,20 @@ std::vector<DofSettings> leg_drives(const Model& model) {
   return dofs;
 }
 
+// anymal_b's velocity thrown and spinning: the base's twist, legs still.
+Eigen::VectorXd thrown(const Model& model) {
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(model.nv);
+  v.head<6>() << 0.3, -0.2, 0.1, 0.5, -1.0, 2.0;
+  return v;
+}
+
+// The stance with every leg joint bent 1.8 times as far.
+Eigen::VectorXd crouch(const Model& model) {
+  Eigen::VectorXd q = stance(model);
+  for (int k = 7; k < model.nq; ++k) q[k] *= 1.8;
+  return q;
+}
+
 StepOptions options(Precision precision, bool conserve) {
   StepOptions o;
   o.precision = precision;
@@ -38,12 +52,8 @@ double free_fall_balance_error(Precision precision, bool conserve) {
   const StepOptions o = options(precision, conserve);
   Simulator sim(model, 1, o, dofs);
   const Eigen::VectorXd stand = stance(model);
-  Eigen::VectorXd crouch = stand;
-  for (int k = 7; k < model.nq; ++k) crouch[k] *= 1.8;
-  Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
-  v0.head<6>() << 0.3, -0.2, 0.1, 0.5, -1.0, 2.0;  // thrown and spinning
-  sim.set_state(0, stand, v0);
-  sim.set_drive_target(0, crouch, Eigen::VectorXd::Zero(model.nv));
+  sim.set_state(0, stand, thrown(model));
+  sim.set_drive_target(0, crouch(model), Eigen::VectorXd::Zero(model.nv));
   const int foot = model.nbody - 1;
   const Eigen::Vector3d foot_force(3.0, -2.0, 5.0), base_force(-4.0, 1.0, 2.0);
   sim.set_link_wrench(0, foot, (Eigen::Matrix<double, 6, 1>() << foot_force, 0.5, 0.0, -0.2).finished());
@@ -107,16 +117,12 @@ TEST(MomentumProjection, FlightKeepsItsMomentumToRoundingForLong) {
   for (Precision precision : {Precision::Double, Precision::Float}) {
     Simulator sim(model, 1, options(precision, true), leg_drives(model));
     sim.set_gravity(0, Eigen::Vector3d::Zero());
-    const Eigen::VectorXd stand = stance(model);
-    Eigen::VectorXd crouch = stand;
-    for (int k = 7; k < model.nq; ++k) crouch[k] *= 1.8;
-    Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
-    v0.head<6>() << 0.3, -0.2, 0.1, 0.5, -1.0, 2.0;
-    sim.set_state(0, stand, v0);
+    const Eigen::VectorXd stand = stance(model), bent = crouch(model);
+    sim.set_state(0, stand, thrown(model));
     const Eigen::Vector3d p0 = dyn.linear_momentum(sim.q(0), sim.v(0));
     double worst = 0;
     for (int i = 0; i < 20000; ++i) {
-      if (i % 125 == 0) sim.set_drive_target(0, (i / 125) % 2 ? stand : crouch, Eigen::VectorXd::Zero(model.nv));
+      if (i % 125 == 0) sim.set_drive_target(0, (i / 125) % 2 ? stand : bent, Eigen::VectorXd::Zero(model.nv));
       sim.step();
       worst = std::max(worst, (dyn.linear_momentum(sim.q(0), sim.v(0)) - p0).norm() / p0.norm());
     }
@@ -133,12 +139,8 @@ TEST(MomentumProjection, FlightKeepsItsMomentumToRoundingForLong) {
 TEST(MomentumProjection, SnapshotCarriesTheRemainder) {
   const Model model = load_shared_model("anymal_b", true);
   Simulator sim(model, 1, options(Precision::Float, true), leg_drives(model));
-  Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
-  v0.head<6>() << 0.3, -0.2, 0.1, 0.5, -1.0, 2.0;
-  Eigen::VectorXd crouch = stance(model);
-  for (int k = 7; k < model.nq; ++k) crouch[k] *= 1.8;
-  sim.set_state(0, stance(model), v0);
-  sim.set_drive_target(0, crouch, Eigen::VectorXd::Zero(model.nv));
+  sim.set_state(0, stance(model), thrown(model));
+  sim.set_drive_target(0, crouch(model), Eigen::VectorXd::Zero(model.nv));
   sim.step(100);
   const CopySnapshot saved = sim.snapshot(0);
   ASSERT_EQ(saved.momentum_remainder.size(), 3) << "one floating articulation";
@@ -174,8 +176,7 @@ TEST(MomentumProjection, ResetOnFaultClearsTheRemainder) {
   StepOptions o = options(Precision::Float, true);
   o.reset_on_fault = true;
   Simulator sim(model, 1, o, leg_drives(model));
-  Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
-  v0.head<6>() << 0.3, -0.2, 0.1, 0.5, -1.0, 2.0;
+  const Eigen::VectorXd v0 = thrown(model);
   sim.set_state(0, stance(model), v0);
   sim.step(100);
   ASSERT_GT(sim.snapshot(0).momentum_remainder.norm(), 0);
