@@ -1,5 +1,6 @@
 // Recursive Newton-Euler inverse dynamics over one block (RBDA Table 5.1):
-// tau = M(q) qacc + C(q, v) v + g(q) - sum_i J_i^T F_i.
+// tau = M(q) qacc + C(q, v) v + g(q) - sum_i J_i^T F_i, M with the joints'
+// armature on its diagonal as in CRBA and ABA.
 #pragma once
 
 #include "kernels/body_terms.hpp"
@@ -54,7 +55,13 @@ void rnea(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scal
     int axes[6];
     const int n = joint_axes(km.body_joint[b], axes);
     if (tau_out)
-      for (int k = 0; k < n; ++k) lane::store(ws.force[b].e[axes[k]], tau_out + (km.body_dof_offset[b] + k) * W);
+      for (int k = 0; k < n; ++k) {
+        const int dof = km.body_dof_offset[b] + k;
+        L tau = ws.force[b].e[axes[k]];
+        // the rotor's own inertia acts on the DOF only; the bodies never see it
+        if (in.qacc) tau = lane::fmadd(L(km.dof_armature[dof]), lane::load<L>(in.qacc + dof * W), tau);
+        lane::store(tau, tau_out + dof * W);
+      }
     const int parent = km.body_parent[b];
     if (parent >= 0) ws.force[parent] = spatial::add(ws.force[parent], spatial::force_to_parent(ws.local[b], ws.force[b]));
   }

@@ -52,6 +52,21 @@ void expect_aba_inverts_rnea(const Model& model, const CopyDynamics& dyn, std::m
 
 TEST_P(Identities, AbaInvertsRnea) { expect_aba_inverts_rnea(model_, *dyn_, rng_); }
 
+// Armature is a rotor's inertia on its DOF: CRBA puts it on M's diagonal,
+// ABA on D, and RNEA must add armature * qacc, or the round trip and the
+// columns of M fail by about the armature (0.05-0.5 here, against joint
+// inertias from 1e-3).
+TEST_P(Identities, AbaInvertsRneaWithArmature) {
+  Model geared = model_;
+  for (int k = 0; k < geared.nv; ++k) geared.dof_armature[k] = 0.05 + 0.45 * std::uniform_real_distribution<>()(rng_);
+  const CopyDynamics dyn(geared, Precision::Double);
+  expect_aba_inverts_rnea(geared, dyn, rng_);
+  const Eigen::VectorXd q = test::random_configuration(geared, rng_);
+  const Eigen::VectorXd v = test::random_vector(geared.nv, rng_, 2.0), a = test::random_vector(geared.nv, rng_, 3.0);
+  const Eigen::VectorXd expected = dyn.mass_matrix(q) * a + dyn.bias_force(q, v);
+  EXPECT_LE((dyn.inverse_dynamics(q, v, a) - expected).norm(), 1e-10 * expected.norm());
+}
+
 // The Free root's implicit gyroscopic Jacobian h G, G = d(v x* I v)/dv,
 // against central differences of the velocity-product force on a rigid
 // inertia with an offset centre of mass. The force is quadratic in v, so
