@@ -35,7 +35,8 @@ inline Quaternion<L> quaternion_exp(const Vec3<L>& phi) {
   return {c, k * phi.x, k * phi.y, k * phi.z};
 }
 
-// Rotation vector of a unit quaternion (the shorter way round).
+// Rotation vector of a quaternion of any non-zero norm (the shorter way
+// round), as of the quaternion normalised.
 template <class L>
 inline Vec3<L> quaternion_log(const Quaternion<L>& q) {
   using T = lane::scalar_t<L>;
@@ -43,10 +44,13 @@ inline Vec3<L> quaternion_log(const Quaternion<L>& q) {
   const Vec3<L> u = {sign * q.x, sign * q.y, sign * q.z};
   const L n = lane::sqrt(spatial::dot(u, u));
   const L half_angle = lane::atan2(n, sign * q.w);
-  // 2 h / sin(h) ~ 2 (1 + h^2/6) for small n, where n ~ sin(h).
+  // The rotation vector is 2 h u / n with n = |q| sin(h); for small h that
+  // is (2 / |q|) (h / sin h) u ~ (2 / |q|) (1 + h^2/6) u.
   const T small = std::is_same_v<T, float> ? T(1e-2) : T(1e-4);
-  const L ratio = lane::select(n < L(small), T(2) * lane::fmadd(n * n, L(T(1.0 / 6.0)), L(T(1))),
-                               T(2) * half_angle / lane::max(n, L(small)));
+  const L norm = lane::sqrt(lane::fmadd(q.w, q.w, n * n));
+  const L series = T(2) * lane::fmadd(half_angle * half_angle, L(T(1.0 / 6.0)), L(T(1))) / norm;
+  const L direct = T(2) * half_angle / lane::max(n, L(std::numeric_limits<T>::min()));
+  const L ratio = lane::select(half_angle < L(small), series, direct);
   return spatial::scale(ratio, u);
 }
 

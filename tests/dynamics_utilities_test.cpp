@@ -44,6 +44,34 @@ TEST_P(Utilities, IntegrateAndDifferenceAreInverse) {
   for (std::size_t f = 0; f < a.size(); ++f) EXPECT_LE((a[f].matrix() - b[f].matrix()).norm(), 1e-12) << model_.frame_name[f];
 }
 
+// Quaternions of any non-zero norm act as normalised in the kinematics,
+// difference included: at small angles (below the rotation vector's series
+// threshold, 1e-2 rad in float and 1e-4 in double) it once returned the
+// rotation times |q0| |q1|. Each precision is compared with itself on unit
+// quaternions: float's difference of nearby quaternions keeps about
+// eps / angle ~ 1e-4 of the angle, double's 1e-11.
+TEST_P(Utilities, DifferenceIgnoresTheQuaternionsNorm) {
+  auto scale_quaternions = [&](Eigen::VectorXd q, double factor) {
+    for (int b = 0; b < model_.nbody; ++b) {
+      const JointType type = model_.body_joint[b];
+      if (type == JointType::Free || type == JointType::Spherical)
+        q.segment<4>(model_.body_q_offset[b] + (type == JointType::Free ? 3 : 0)) *= factor;
+    }
+    return q;
+  };
+  for (const Precision precision : {Precision::Float, Precision::Double}) {
+    const CopyDynamics dyn(model_, precision);
+    const double angle = precision == Precision::Float ? 1e-3 : 1e-5, tolerance = precision == Precision::Float ? 1e-3 : 1e-9;
+    const Eigen::VectorXd q0 = test::random_configuration(model_, rng_);
+    const Eigen::VectorXd v = angle * test::random_vector(model_.nv, rng_, 1.0);
+    const Eigen::VectorXd q1 = dyn.integrate(q0, v, 1.0);
+    const Eigen::VectorXd unit = dyn.difference(q0, q1);
+    const Eigen::VectorXd scaled = dyn.difference(scale_quaternions(q0, 2.0), scale_quaternions(q1, 3.0));
+    EXPECT_LE((scaled - unit).norm(), tolerance * v.norm()) << (precision == Precision::Float ? "float" : "double");
+    EXPECT_LE((unit - v).norm(), tolerance * v.norm()) << (precision == Precision::Float ? "float" : "double");
+  }
+}
+
 // J v equals the time derivative of the point's position and orientation.
 TEST_P(Utilities, JacobiansMatchFiniteDifferencesOfKinematics) {
   const Eigen::VectorXd q = test::random_configuration(model_, rng_);
