@@ -28,8 +28,21 @@ void BatchDynamics<L>::check(const BatchArray<Scalar>& array, int copies, int si
                                 std::to_string(array.width()));
 }
 
+// A state built for another model or lane width would be read out of
+// bounds: every field is checked, not only the outputs.
+template <class L>
+void BatchDynamics<L>::check(const BatchState<Scalar>& s, const char* what) const {
+  const int copies = s.copies();
+  check(s.q, copies, km_.nq, (std::string(what) + " state q").c_str());
+  for (const BatchArray<Scalar>* a : {&s.v, &s.tau, &s.qacc}) check(*a, copies, km_.nv, (std::string(what) + " state").c_str());
+  check(s.wrench, copies, 6 * km_.nbody, (std::string(what) + " state wrench").c_str());
+  check(s.inertia, copies, BatchState<Scalar>::kInertiaParams * km_.nbody, (std::string(what) + " state inertia").c_str());
+  check(s.gravity, copies, 3, (std::string(what) + " state gravity").c_str());
+}
+
 template <class L>
 void BatchDynamics<L>::frame_poses(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "frame_poses");
   check(out, s.copies(), 12 * km_.nframe, "frame_poses");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -40,6 +53,7 @@ void BatchDynamics<L>::frame_poses(const BatchState<Scalar>& s, BatchArray<Scala
 
 template <class L>
 void BatchDynamics<L>::frame_velocities(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "frame_velocities");
   check(out, s.copies(), 6 * km_.nframe, "frame_velocities");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -51,6 +65,7 @@ void BatchDynamics<L>::frame_velocities(const BatchState<Scalar>& s, BatchArray<
 
 template <class L>
 void BatchDynamics<L>::body_poses(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "body_poses");
   check(out, s.copies(), 12 * km_.nbody, "body_poses");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -68,6 +83,7 @@ void BatchDynamics<L>::body_poses(const BatchState<Scalar>& s, BatchArray<Scalar
 
 template <class L>
 void BatchDynamics<L>::forward_dynamics(const BatchState<Scalar>& s, BatchArray<Scalar>& qacc) const {
+  check(s, "forward_dynamics");
   check(qacc, s.copies(), km_.nv, "forward_dynamics");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -80,6 +96,7 @@ void BatchDynamics<L>::forward_dynamics(const BatchState<Scalar>& s, BatchArray<
 
 template <class L>
 void BatchDynamics<L>::inverse_dynamics(const BatchState<Scalar>& s, BatchArray<Scalar>& tau) const {
+  check(s, "inverse_dynamics");
   check(tau, s.copies(), km_.nv, "inverse_dynamics");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -94,6 +111,7 @@ void BatchDynamics<L>::inverse_dynamics(const BatchState<Scalar>& s, BatchArray<
 #define LOCKSTEP_RNEA_TERM(NAME, USE_V, USE_GRAVITY, USE_WRENCH)                            \
   template <class L>                                                                       \
   void BatchDynamics<L>::NAME(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const { \
+    check(s, #NAME);                                                                       \
     check(out, s.copies(), km_.nv, #NAME);                                                 \
     for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {                            \
       joint_transforms<L>(km_, s.q.block(b), ws);                                          \
@@ -113,6 +131,7 @@ LOCKSTEP_RNEA_TERM(gravity_force, false, true, false)
 
 template <class L>
 void BatchDynamics<L>::external_force(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "external_force");
   check(out, s.copies(), km_.nv, "external_force");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -128,6 +147,7 @@ void BatchDynamics<L>::external_force(const BatchState<Scalar>& s, BatchArray<Sc
 
 template <class L>
 void BatchDynamics<L>::mass_matrix(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "mass_matrix");
   check(out, s.copies(), km_.nv * km_.nv, "mass_matrix");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -137,6 +157,7 @@ void BatchDynamics<L>::mass_matrix(const BatchState<Scalar>& s, BatchArray<Scala
 
 template <class L>
 void BatchDynamics<L>::inverse_mass_matrix(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "inverse_mass_matrix");
   check(out, s.copies(), km_.nv * km_.nv, "inverse_mass_matrix");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -146,6 +167,7 @@ void BatchDynamics<L>::inverse_mass_matrix(const BatchState<Scalar>& s, BatchArr
 
 template <class L>
 void BatchDynamics<L>::com_jacobian(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "com_jacobian");
   check(out, s.copies(), 6 * km_.nbody * km_.nv, "com_jacobian");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -157,8 +179,11 @@ void BatchDynamics<L>::com_jacobian(const BatchState<Scalar>& s, BatchArray<Scal
 template <class L>
 void BatchDynamics<L>::point_jacobian(const BatchState<Scalar>& s, int frame, const Eigen::Vector3d& offset,
                                       BatchArray<Scalar>& out) const {
+  check(s, "point_jacobian");
   check(out, s.copies(), 6 * km_.nv, "point_jacobian");
-  if (frame < 0 || frame >= km_.nframe) throw std::out_of_range("point_jacobian: frame index " + std::to_string(frame));
+  if (frame < 0 || frame >= km_.nframe)
+    throw std::out_of_range("point_jacobian: frame index " + std::to_string(frame) + " outside [0, " +
+                            std::to_string(km_.nframe) + ")");
   // The point in its body's coordinates (fixed), then in the world per lane.
   const int body = model_->frame_body[frame];
   const Eigen::Vector3d local = model_->frame_placement[frame] * offset;
@@ -177,6 +202,7 @@ void BatchDynamics<L>::point_jacobian(const BatchState<Scalar>& s, int frame, co
 
 template <class L>
 void BatchDynamics<L>::kinetic_energy(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "kinetic_energy");
   check(out, s.copies(), 1, "kinetic_energy");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -186,6 +212,7 @@ void BatchDynamics<L>::kinetic_energy(const BatchState<Scalar>& s, BatchArray<Sc
 
 template <class L>
 void BatchDynamics<L>::potential_energy(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "potential_energy");
   check(out, s.copies(), 1, "potential_energy");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -197,6 +224,7 @@ void BatchDynamics<L>::potential_energy(const BatchState<Scalar>& s, BatchArray<
 template <class L>
 void BatchDynamics<L>::linear_momentum(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
   constexpr std::size_t W = lane::width_v<L>;
+  check(s, "linear_momentum");
   check(out, s.copies(), 3, "linear_momentum");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
@@ -212,6 +240,7 @@ void BatchDynamics<L>::linear_momentum(const BatchState<Scalar>& s, BatchArray<S
 
 template <class L>
 void BatchDynamics<L>::incoming_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "incoming_joint_forces");
   check(out, s.copies(), 6 * km_.nbody, "incoming_joint_forces");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);

@@ -86,6 +86,7 @@ class BatchDynamics {
   template <class F>
   void for_each_block(int blocks, F&& f) const;
   void check(const BatchArray<Scalar>& array, int copies, int size, const char* what) const;
+  void check(const BatchState<Scalar>& s, const char* what) const;
 
   const Model* model_;
   KernelModel<Scalar> km_;

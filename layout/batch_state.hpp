@@ -59,6 +59,8 @@ Eigen::VectorXd BatchState<T>::model_inertia_params(const Model& model) {
 template <class T>
 void BatchState<T>::set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com,
                                      const Eigen::Matrix3d& I) {
+  if (copy < 0 || copy >= copies())
+    throw std::out_of_range("copy index " + std::to_string(copy) + " outside [0, " + std::to_string(copies()) + ")");
   if (body < 0 || kInertiaParams * body >= inertia.size())
     throw std::out_of_range("body index " + std::to_string(body) + " outside the model");
   const double params[kInertiaParams] = {mass, com.x(), com.y(), com.z(), I(0, 0), I(1, 1), I(2, 2), I(0, 1), I(0, 2), I(1, 2)};

@@ -430,5 +430,36 @@ TEST(Momentum, SimulatorRk4KeepsAFloatingRobotsMomentum) {
   }
 }
 
+// A state of another lane width or another model is refused by name, not
+// read out of bounds (a simulator's 16-lane state passed to a scalar
+// BatchDynamics once read its padding lanes as copies).
+TEST(BatchDynamicsErrors, RefuseStatesOfAnotherWidthOrModelAndBadIndices) {
+  const Model anymal = test::load_shared_model("anymal_b", true), ur5 = test::load_shared_model("ur5", false);
+  const BatchDynamics<lane::simd<float>> simd(anymal);
+  const BatchDynamics<float> scalar(anymal);
+  BatchArray<float> energy = scalar.make_array(3, 1);
+  const BatchState<float> wide = simd.make_state(3), other = BatchDynamics<float>(ur5).make_state(3);
+  auto message = [](auto&& call) {
+    try {
+      call();
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message([&] { scalar.potential_energy(wide, energy); }).find("potential_energy state q"), std::string::npos);
+  EXPECT_NE(message([&] { scalar.potential_energy(other, energy); }).find("potential_energy state q"), std::string::npos);
+  BatchState<float> state = scalar.make_state(3);
+  EXPECT_EQ(message([&] { state.set_body_inertia(3, 0, 1.0, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity()); }),
+            "copy index 3 outside [0, 3)");
+  EXPECT_EQ(message([&] { state.set_body_inertia(-1, 0, 1.0, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity()); }),
+            "copy index -1 outside [0, 3)");
+  BatchArray<float> jacobian = scalar.make_array(3, 6 * anymal.nv);
+  EXPECT_EQ(message([&] { scalar.point_jacobian(state, 999, Eigen::Vector3d::Zero(), jacobian); }),
+            "point_jacobian: frame index 999 outside [0, " + std::to_string(anymal.frame_name.size()) + ")");
+  scalar.potential_energy(state, energy);  // a state of its own is read
+  EXPECT_TRUE(std::isfinite(energy.get(0)[0]));
+}
+
 }  // namespace
 }  // namespace lockstep
