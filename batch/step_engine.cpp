@@ -99,10 +99,15 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     const JointType type = model.body_joint[model.dof_body[k]];
     const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
     const bool limited = std::isfinite(d.lower) || std::isfinite(d.upper);
-    if (plan.hard_limits && one_dof && d.limit_stiffness == 0.0 && (limited || forced(Stage::HardLimits)))
-      add_row(JointRowKind::PositionLimit, k, d.lower, d.upper);
-    if (plan.velocity_limits && (std::isfinite(d.velocity_limit) || forced(Stage::VelocityLimits)))
+    const bool hard_limited = plan.hard_limits && one_dof && d.limit_stiffness == 0.0;
+    if (hard_limited && (limited || forced(Stage::HardLimits))) add_row(JointRowKind::PositionLimit, k, d.lower, d.upper);
+    if (plan.velocity_limits && (std::isfinite(d.velocity_limit) || forced(Stage::VelocityLimits))) {
       add_row(JointRowKind::VelocityLimit, k, d.velocity_limit, 0);
+      if (hard_limited) {
+        row_specs_.back().range_lower = static_cast<T>(d.lower);
+        row_specs_.back().range_upper = static_cast<T>(d.upper);
+      }
+    }
     if (plan.coulomb_friction && d.friction_model == FrictionModel::Coulomb &&
         (d.friction > 0.0 || forced(Stage::CoulombFriction)))
       add_row(JointRowKind::Friction, k, d.friction, 0);

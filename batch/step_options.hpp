@@ -27,8 +27,9 @@ const char* integrator_name(Integrator integrator);
 // articulated inertia, so the response does not depend on the links' masses.
 enum class DriveType { Force, Acceleration };
 
-// Coulomb: a solver row that stops the joint if the friction force can
-// (PhysX, RaiSim). Stribeck: a smooth explicit force (the articulated-actors
+// Coulomb: a solver row that stops the joint if the friction force can, the
+// force a constant bound (RaiSim's model; PhysX scales its bound by the
+// joint's load, which is not modelled). Stribeck: a smooth explicit force (the articulated-actors
 // reference): peak static force coulomb + stiction_extra reached linearly at
 // falloff_velocity, falling to coulomb with a Gaussian of width
 // stribeck_velocity.

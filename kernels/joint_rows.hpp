@@ -24,6 +24,9 @@ struct JointRowSpec {
   int q_index;  // the DOF's entry in q (1-DOF joints only carry limits)
   int column;  // index of the DOF among the distinct row DOFs
   T a = 0, b = 0;  // PositionLimit: lower, upper; VelocityLimit: v_max; Friction: friction force
+  // VelocityLimit on a DOF with a hard position limit: that row's range
+  // (joint_row: the band lets the limit's correction through).
+  T range_lower = -std::numeric_limits<T>::infinity(), range_upper = std::numeric_limits<T>::infinity();
 };
 
 // Per block: the rows, each row's sign, and the columns Mt^-1 e_k.
@@ -77,10 +80,19 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
       row.positional = true;
       break;
     }
-    case JointRowKind::VelocityLimit:
-      row.target = L(-spec.a);
-      row.target_hi = L(spec.a);
+    case JointRowKind::VelocityLimit: {
+      // Past a hard limit, that row asks for the speed back erp e / dt
+      // (positional_target), which may exceed v_max: the band widens to it
+      // on that side, as in RaiSim a velocity limit does not act against a
+      // position limit that acts. Only so far, not off: a joint resting on
+      // its limit a rounding error past it keeps its velocity limit.
+      const L qk = lane::load<L>(q + spec.q_index * W), rate(erp / dt);
+      const L up = lane::select(qk < L(spec.range_lower), rate * (L(spec.range_lower) - qk), zero);
+      const L down = lane::select(qk > L(spec.range_upper), rate * (qk - L(spec.range_upper)), zero);
+      row.target = -lane::max(L(spec.a), down);
+      row.target_hi = lane::max(L(spec.a), up);
       break;
+    }
     case JointRowKind::Friction:
       row.hi = friction_impulse_bound<L>(spec, friction, dt);
       row.lo = -row.hi;

@@ -145,6 +145,38 @@ TEST(Simulator, VelocityLimitHoldsWhenAnotherRowReversesTheJoint) {
   }
 }
 
+// A joint past its hard limit goes back at the limit's correction speed
+// (erp times the violation per step), which is faster than its velocity
+// limit here: the velocity limit gives way to the position limit, as in
+// RaiSim's step. Without that the two rows asked for opposite speeds and
+// the solve ended at whichever row it swept last (v = -v_max). On the
+// limit, a rounding error past it, the velocity limit still bounds a
+// torque pulling the joint back in.
+TEST(Simulator, VelocityLimitGivesWayToAPositionLimitThatCorrects) {
+  const Model model = spinner(0.1, -0.5, 0.5);
+  for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
+    StepOptions o = double_options(0.01);
+    o.solver = solver;
+    std::vector<DofSettings> limited = default_dof_settings(model), free = limited;
+    limited[0].velocity_limit = 0.05;
+    Simulator with(model, 1, o, limited), without(model, 1, o, free);
+    for (Simulator* sim : {&with, &without}) {
+      sim->set_gravity(0, Eigen::Vector3d::Zero());
+      sim->set_state(0, Eigen::VectorXd::Constant(1, 0.8), Eigen::VectorXd::Zero(1));
+      sim->step();
+    }
+    // PGS: back at error_reduction * 0.3 / dt; TGS eases its target as the
+    // substeps close the violation, but is still far above v_max
+    if (solver == SolverType::PGS) EXPECT_NEAR(without.v(0)[0], -o.error_reduction * 0.3 / o.dt, 1e-9);
+    EXPECT_LT(without.v(0)[0], -1.0) << solver_name(solver);
+    EXPECT_NEAR(with.v(0)[0], without.v(0)[0], 1e-12) << solver_name(solver);
+    with.set_state(0, Eigen::VectorXd::Constant(1, 0.5 + 1e-12), Eigen::VectorXd::Zero(1));
+    with.set_torque(0, Eigen::VectorXd::Constant(1, -50.0));
+    with.step();
+    EXPECT_NEAR(with.v(0)[0], -0.05, 1e-9) << solver_name(solver);
+  }
+}
+
 // A joint fast enough to cross a narrow range in one step meets the limit
 // it heads for, not the one its position is nearer to.
 TEST(Simulator, FastJointStopsAtTheFarLimitOfANarrowRange) {
