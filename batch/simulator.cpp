@@ -515,6 +515,13 @@ auto contact_report(Batch& b) {
                     &b.contact_overflow_steps};
 }
 
+// applied_torque()'s sources of a copy's last step (empty arrays without
+// StepOptions::record_applied_torque).
+template <class Batch>
+auto applied_torque_report(Batch& b) {
+  return std::array{&b.applied_drive, &b.applied_passive, &b.applied_friction, &b.applied_limits};
+}
+
 template <class Arrays>
 int packed_size(const Arrays& arrays) {
   int size = 0;
@@ -556,6 +563,7 @@ CopySnapshot Simulator::snapshot(int copy) const {
                         b.momentum_remainder.get(copy),
                         pack(copy_parameters(b), copy),
                         pack(contact_report(b), copy),
+                        pack(applied_torque_report(b), copy),
                         scene_key_};
   });
 }
@@ -572,11 +580,14 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
             "restore: the snapshot's parameters do not match this simulator's scene");
     require(s.contact_report.size() == packed_size(contact_report(b)),
             "restore: the snapshot's contact report does not match this simulator's scene");
+    require(s.applied_torque.size() == packed_size(applied_torque_report(b)),
+            "restore: the snapshot's applied torques do not match this simulator's record_applied_torque");
     require(s.scene_key == 0 || s.scene_key == scene_key_,
             "restore: the snapshot was taken from another scene (its model's joints or links, its joint rows "
             "or its contact pairs differ from this simulator's)");
     unpack(s.parameters, copy, copy_parameters(b));
     unpack(s.contact_report, copy, contact_report(b));
+    unpack(s.applied_torque, copy, applied_torque_report(b));
     b.state.q.set(copy, s.q);
     b.state.v.set(copy, s.v);
     b.impulse.set(copy, s.joint_impulse);
@@ -793,6 +804,7 @@ void Simulator::reset(int copy) {
     clear_warm_start(b, copy);
     for (auto* a : {&b.contact_count, &b.contact_dropped, &b.contact_overflow_steps})
       if (a->size() > 0) a->at(copy, 0) = 0;
+    for (auto* a : applied_torque_report(b)) a->fill(copy, 0);  // no step since
     b.fault.at(copy, 0) = 0;
   });
 }

@@ -129,6 +129,9 @@ struct Contact {
 // included.
 struct CopySnapshot {
   Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, momentum_remainder, parameters, contact_report;
+  // applied_torque()'s four sources of the last step (empty without
+  // StepOptions::record_applied_torque)
+  Eigen::VectorXd applied_torque;
   // Simulator::scene_key() of the simulator it came from: restore refuses a
   // snapshot of another scene whose arrays happen to have the same sizes.
   // 0 (a snapshot put together by hand) is not checked.
@@ -238,7 +241,8 @@ class Simulator {
   Fault fault(int copy) const;
   int fault_count() const;
   void clear_fault(int copy);
-  // Back to the initial state, warm start cleared, fault cleared.
+  // Back to the initial state, warm start, fault, contact report and applied
+  // torques cleared.
   void reset(int copy);
 
   AppliedTorque applied_torque(int copy) const;  // needs record_applied_torque

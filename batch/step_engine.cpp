@@ -113,9 +113,9 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
       add_row(JointRowKind::Friction, k, d.friction, 0);
   }
   batch_.impulse = BatchArray<T>(copies, static_cast<int>(row_specs_.size()), kWidth);
-  if (options.record_applied_torque)
-    for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
-      *a = BatchArray<T>(copies, nv, kWidth);
+  // without recording, empty per copy (a snapshot packs none)
+  for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
+    *a = BatchArray<T>(copies, options.record_applied_torque ? nv : 0, kWidth);
   const JointParameters scene = scene_joint_parameters(model, dofs);
   // every copy's per-DOF parameters, and the one block read while no copy has its own
   const std::tuple<BatchArray<T>*, BatchArray<T>*, const Eigen::VectorXd*> joint_parameters[] = {

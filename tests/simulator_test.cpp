@@ -243,6 +243,37 @@ TEST(Simulator, AppliedTorqueBalancesTheEquationOfMotion) {
                                                                                           << "\nrhs " << rhs.transpose();
 }
 
+// applied_torque() is the last step's: a reset leaves no step behind it
+// (it once kept the ended episode's torque, which VecEnv then observed as
+// the new episode's first), and a snapshot carries it, so that a restored
+// copy reports what its source does.
+TEST(Simulator, ResetClearsAndSnapshotsCarryTheAppliedTorque) {
+  const Model model = test::rod_chain({1.0, 1.0}, 1.0);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  dofs[0].drive_stiffness = 40.0;
+  dofs[1].friction = 0.5;
+  StepOptions o = double_options(0.01);
+  o.record_applied_torque = true;
+  Simulator sim(model, 2, o, dofs);
+  sim.set_torque(0, Eigen::Vector2d(1.0, -2.0));
+  sim.set_drive_target(0, Eigen::Vector2d(0.5, 0.0), Eigen::Vector2d::Zero());
+  sim.step(3);
+  const AppliedTorque before = sim.applied_torque(0);
+  ASSERT_GT(before.drive.cwiseAbs().maxCoeff(), 1.0);
+  sim.restore(1, sim.snapshot(0));
+  const AppliedTorque restored = sim.applied_torque(1);
+  for (const auto& [a, b] : {std::pair{before.drive, restored.drive}, {before.passive, restored.passive},
+                             {before.friction, restored.friction}, {before.limits, restored.limits}})
+    EXPECT_EQ(a, b);
+  sim.reset(0);
+  const AppliedTorque after = sim.applied_torque(0);
+  for (const Eigen::VectorXd* t : {&after.drive, &after.passive, &after.friction, &after.limits})
+    EXPECT_EQ(*t, Eigen::VectorXd::Zero(model.nv));
+  Simulator unrecorded(model, 1, double_options(0.01), dofs);
+  EXPECT_THROW(unrecorded.restore(0, sim.snapshot(1)), std::invalid_argument);
+  EXPECT_EQ(unrecorded.snapshot(0).applied_torque.size(), 0);
+}
+
 // On a spinner (constant inertia, no bias force on its axis) the torque
 // that acted over the step is I (v1 - v0) / dt with every integrator: the
 // report must be the drive and passive forces the step used, averaged as
