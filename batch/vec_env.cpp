@@ -16,6 +16,8 @@ namespace {
 bool is_free_dof(const Model& m, int k) { return m.body_joint[m.dof_body[k]] == JointType::Free; }
 
 VecEnvOptions checked(const Model& model, VecEnvOptions o) {
+  require(model.nbody > 0,
+          "VecEnv: the model has no moving body (a fixed base without joints): there is nothing to step or observe");
   require(o.control_steps >= 1, "VecEnv: control_steps must be at least 1, got " + std::to_string(o.control_steps));
   require(o.episode_steps >= 0,
           "VecEnv: episode_steps must be >= 0 (0: no truncation), got " + std::to_string(o.episode_steps));

@@ -90,7 +90,7 @@ class RolloutWriter {
   // is set up as "<path>.creating" and renamed to `path` once it is valid: a
   // process killed meanwhile leaves the previous `path`, if any.
   // Throws std::invalid_argument for bad arguments (empty or duplicate names,
-  // a zero extent, a reserved attribute name, options out of range, static
+  // a reserved attribute name, options out of range, static
   // data of the wrong size) and RolloutFileError when the file cannot be
   // created.
   RolloutWriter(const std::string& path, std::vector<StepDataset> steps, std::vector<StaticDataset> statics,

@@ -53,12 +53,6 @@ void check_name(const std::string& path, const std::string& kind, const std::str
   if (!seen.insert(name).second) throw std::invalid_argument(path + ": duplicate " + kind + " name '" + name + "'");
 }
 
-void check_shape(const std::string& path, const std::string& kind, const std::string& name,
-                 const std::vector<std::size_t>& shape) {
-  if (std::find(shape.begin(), shape.end(), std::size_t{0}) != shape.end())
-    throw std::invalid_argument(path + ": " + kind + " '" + name + "' has a zero extent in its shape");
-}
-
 void check_attributes(const std::string& path, const std::vector<Attribute>& attributes) {
   std::set<std::string> seen;
   for (const Attribute& attribute : attributes) {
@@ -76,11 +70,9 @@ void check_arguments(const std::string& path, const std::vector<StepDataset>& st
   std::set<std::string> names;
   for (const StepDataset& dataset : steps) {
     check_name(path, "dataset", dataset.name, names);
-    check_shape(path, "step dataset", dataset.name, dataset.shape);
   }
   for (const StaticDataset& dataset : statics) {
     check_name(path, "dataset", dataset.name, names);
-    check_shape(path, "static dataset", dataset.name, dataset.shape);
     const std::size_t bytes = element_count(dataset.shape) * element_size(dataset.type);
     if (dataset.data.size() != bytes)
       throw std::invalid_argument(path + ": static dataset '" + dataset.name + "' has " +
@@ -128,8 +120,9 @@ void write_static_dataset(hid_t file, const StaticDataset& dataset, const std::s
       checked_handle(H5Dcreate2(file, dataset.name.c_str(), file_type(dataset.type), space.get(), H5P_DEFAULT,
                                 H5P_DEFAULT, H5P_DEFAULT),
                      H5Dclose, path, what);
-  check(H5Dwrite(handle.get(), memory_type(dataset.type), H5S_ALL, H5S_ALL, H5P_DEFAULT, dataset.data.data()), path,
-        what);
+  if (!dataset.data.empty())  // a zero extent: nothing to write
+    check(H5Dwrite(handle.get(), memory_type(dataset.type), H5S_ALL, H5S_ALL, H5P_DEFAULT, dataset.data.data()), path,
+          what);
   describe(handle.get(), dataset.description, path);
 }
 
@@ -145,6 +138,8 @@ struct StepSlot {
 };
 
 // Chunks of [chunk_steps, shape...], unlimited along T, optional shuffle + gzip.
+// A zero extent (a model without actions) is unlimited too, with chunks of
+// 1 along it: HDF5 wants chunks of at least 1 within a fixed maximum.
 StepSlot create_step_dataset(hid_t file, const StepDataset& dataset, std::size_t chunk_steps, int compression,
                              const std::string& path) {
   const std::string what = "cannot create step dataset '" + dataset.name + "'";
@@ -158,12 +153,13 @@ StepSlot create_step_dataset(hid_t file, const StepDataset& dataset, std::size_t
   slot.count = slot.extent;
   const int rank = static_cast<int>(slot.extent.size());
 
-  std::vector<hsize_t> max_extent = slot.extent;
+  std::vector<hsize_t> max_extent = slot.extent, chunk = slot.extent;
   max_extent[0] = H5S_UNLIMITED;
+  chunk[0] = chunk_steps;
+  for (int d = 1; d < rank; ++d)
+    if (chunk[d] == 0) chunk[d] = 1, max_extent[d] = H5S_UNLIMITED;
   const Handle space = checked_handle(H5Screate_simple(rank, slot.extent.data(), max_extent.data()), H5Sclose,
                                       path, what);
-  std::vector<hsize_t> chunk = slot.extent;
-  chunk[0] = chunk_steps;
   const Handle creation = checked_handle(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, path, what);
   check(H5Pset_chunk(creation.get(), rank, chunk.data()), path, what);
   if (compression > 0) {
@@ -258,7 +254,8 @@ struct RolloutWriter::Impl {
     check_arguments(path, definitions, statics, attributes, options);
     for (const StepDataset& dataset : definitions)
       frame_bytes.push_back(element_count(dataset.shape) * element_size(dataset.type));
-    const std::size_t largest_frame = *std::max_element(frame_bytes.begin(), frame_bytes.end());
+    const std::size_t largest_frame =
+        std::max<std::size_t>(1, *std::max_element(frame_bytes.begin(), frame_bytes.end()));
     const std::size_t chunk_steps = options.chunk_steps > 0
                                         ? static_cast<std::size_t>(options.chunk_steps)
                                         : std::max<std::size_t>(1, kAutomaticChunkBytes / largest_frame);
@@ -317,7 +314,8 @@ struct RolloutWriter::Impl {
     for (const StaticDataset& dataset : statics) write_static_dataset(file.get(), dataset, path);
     for (std::size_t i = 0; i < definitions.size(); ++i) {
       // Each dataset's chunk stays within kMaxChunkBytes.
-      const std::size_t steps = std::clamp<std::size_t>(kMaxChunkBytes / frame_bytes[i], 1, chunk_steps);
+      const std::size_t steps = std::clamp<std::size_t>(kMaxChunkBytes / std::max<std::size_t>(1, frame_bytes[i]), 1,
+                                                        chunk_steps);
       slots.push_back(create_step_dataset(file.get(), definitions[i], steps, compression, path));
     }
     check(H5Fstart_swmr_write(file.get()), path, "cannot start SWMR writing");
@@ -461,6 +459,7 @@ struct RolloutWriter::Impl {
       slot.start[0] = static_cast<hsize_t>(written);
       slot.count[0] = steps;
       if (H5Dset_extent(slot.dataset.get(), slot.extent.data()) < 0) failure("extend");
+      if (frame_bytes[i] == 0) continue;  // a zero extent: the steps hold nothing
       if (first_chunk[i] >= 0) {
         std::vector<hsize_t> offset = slot.start;
         for (hsize_t c = 0; c < steps / slot.chunk_steps; ++c) {
@@ -494,7 +493,9 @@ struct RolloutWriter::Impl {
     std::size_t count = 0;
     for (std::size_t i = 0; i < slots.size() && compression_level > 0; ++i) {
       const StepSlot& slot = slots[i];
-      if (static_cast<hsize_t>(written) % slot.chunk_steps != 0 || steps % slot.chunk_steps != 0) continue;
+      if (frame_bytes[i] == 0 || static_cast<hsize_t>(written) % slot.chunk_steps != 0 ||
+          steps % slot.chunk_steps != 0)
+        continue;
       first_chunk[i] = static_cast<int>(count);
       const std::size_t chunk_bytes = slot.chunk_steps * frame_bytes[i];
       for (hsize_t c = 0; c < steps / slot.chunk_steps; ++c, ++count) {
