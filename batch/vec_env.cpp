@@ -176,8 +176,12 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
     switch (m.body_joint[b]) {
       case JointType::Revolute:
       case JointType::Prismatic: {
+        // clamped to the limits, widened to the configured position where a
+        // scene starts a joint outside them (kept as written, with a warning)
         const DofSettings& d = options_.dofs[k0];
-        q[qo] = std::clamp(q[qo] + value(&Randomization::joint_position_noise, k0), d.lower, d.upper);
+        const double start = q[qo];
+        q[qo] = std::clamp(start + value(&Randomization::joint_position_noise, k0), std::min(d.lower, start),
+                           std::max(d.upper, start));
         v[k0] += value(&Randomization::joint_velocity_noise, k0);
         break;
       }

@@ -46,6 +46,12 @@ VecEnvOptions standing_options(const Model& model, Precision precision = Precisi
   return o;
 }
 
+int first_revolute_body(const Model& m) {
+  for (int b = 0; b < m.nbody; ++b)
+    if (m.body_joint[b] == JointType::Revolute) return b;
+  return -1;
+}
+
 const Model& anymal() {
   static const Model model = test::load_shared_model("anymal_b", true);
   return model;
@@ -182,6 +188,29 @@ TEST(VecEnv, ResetDrawsEveryParameterInItsRangePerCopyAndPerReset) {
   EXPECT_EQ(env.reset_count()[2], 2u);
   EXPECT_EQ(env.reset_count()[1], 1u);
   EXPECT_NE(env.simulator().snapshot(2).parameters, before.parameters);  // a new draw
+}
+
+// A scene may start a joint outside its limits (kept as written, with a
+// warning); the reset once clamped it back without a word. Noise around
+// such a start stays between the limits and the start.
+TEST(VecEnv, AStartOutsideTheLimitsIsKeptAndItsNoiseStaysWithinReach) {
+  VecEnvOptions options = standing_options(anymal());
+  const Model& m = anymal();
+  const int k = m.body_dof_offset[first_revolute_body(m)], qo = m.body_q_offset[m.dof_body[k]];
+  ASSERT_TRUE(std::isfinite(options.dofs[k].upper));
+  const double start = options.dofs[k].upper + 0.3;
+  options.initial_q[qo] = start;
+  options.randomization.joint_position_noise = {0.0, 0.0};
+  VecEnv exact(m, 3, options);
+  exact.reset();
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(exact.simulator().q(c)[qo], static_cast<float>(start)) << "copy " << c;
+  options.randomization.joint_position_noise = {-0.05, 0.05};
+  VecEnv noisy(m, 16, options);
+  noisy.reset();
+  for (int c = 0; c < 16; ++c) {
+    EXPECT_GE(noisy.simulator().q(c)[qo], static_cast<float>(start - 0.05)) << "copy " << c;
+    EXPECT_LE(noisy.simulator().q(c)[qo], static_cast<float>(start)) << "copy " << c;
+  }
 }
 
 // A reset that draws nothing leaves every copy with the model's inertias
