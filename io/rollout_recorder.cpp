@@ -83,7 +83,7 @@ std::vector<Attribute> run_attributes(const VecEnv& env, const RolloutInfo& info
       {"iterations", static_cast<std::int64_t>(o.step.iterations)},
       {"integrator", std::string(integrator_name(o.step.integrator))},
       {"precision", std::string(precision_name(o.step.precision))},
-      {"seed", static_cast<std::int64_t>(o.seed)},
+      {"seed", static_cast<std::int64_t>(o.seed)},  // two's complement from 2^63 (docs/rollout_files.md)
       {"action_mode", std::string(action_mode_name(o.action_mode))},
       {"episode_steps", static_cast<std::int64_t>(o.episode_steps)},
       {"auto_reset", static_cast<std::int64_t>(o.auto_reset)},

@@ -205,7 +205,7 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   const Model& model = scene.model;
   StepOptions options = scene.env.step;
   options.precision = precision;
-  Simulator sim(model, config.copies, options, scene.env.dofs);
+  Simulator sim = build_from_scene(scene, [&] { return Simulator(model, config.copies, options, scene.env.dofs); });
   const step_scene::CopyPoses poses = step_scene::copy_poses(model, scene.env.dofs, scene.env.drive_target_q,
                                                              scene.env.initial_q, config.copies, config.spread);
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);

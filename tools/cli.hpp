@@ -88,6 +88,19 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out);
 // --ground adds the plane, --no-contacts turns contacts off.
 Scene load_cli_scene(const std::string& path, bool floating_base, bool ground, bool no_contacts);
 
+// Returns build() (a Simulator or VecEnv of the scene): a scene whose
+// settings the simulator refuses once they meet (RK4 with solver rows,
+// position-target actions on DOFs without gains, ...) is bad input, a
+// SceneError naming the scene's file, not an internal error.
+template <class Build>
+auto build_from_scene(const Scene& scene, Build&& build) -> decltype(build()) {
+  try {
+    return build();
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(scene.source + ": the scene cannot be simulated: " + e.what());
+  }
+}
+
 // `lockstep demo`: info and dynamics on the bundled model.
 int run_demo(const std::vector<std::string>& args, std::ostream& out);
 

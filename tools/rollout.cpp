@@ -180,10 +180,16 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   if (config.seed) scene.env.seed = *config.seed;
   if (config.episode_steps) scene.env.episode_steps = *config.episode_steps;
   // by default every hardware thread this process may run on (its affinity mask)
-  const int threads = config.threads > 0 ? config.threads : tbb::info::default_concurrency();
+  // TBB runs no more threads than its default arena has: more asked for is
+  // said, and what runs is recorded
+  const int usable = tbb::info::default_concurrency();
+  const int threads = config.threads > 0 ? std::min(config.threads, usable) : usable;
+  if (config.threads > usable)
+    std::fprintf(stderr, "lockstep rollout: warning: --threads %d, but this process may run on %d hardware threads: "
+                 "running %d\n", config.threads, usable, threads);
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
 
-  VecEnv env(scene.model, config.envs, scene.env);
+  VecEnv env = build_from_scene(scene, [&] { return VecEnv(scene.model, config.envs, scene.env); });
   env.reset();
   for (const std::string& warning : env.simulator().warnings())
     std::fprintf(stderr, "lockstep rollout: warning: %s\n", warning.c_str());
@@ -196,6 +202,9 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   Progress progress(config.steps, config.envs);
   double stepping = 0;
   std::int64_t faults_seen = 0, episodes_ended = 0;
+  // Without auto_reset a copy's episode ends once, though it goes on
+  // stepping with terminated or truncated set: counted at the first.
+  std::vector<char> over(static_cast<std::size_t>(config.envs), 0);
   const StopOnSignal stop_on_signal;
   const auto start = Clock::now();
   for (std::int64_t t = 0; t < config.steps; ++t) {
@@ -210,7 +219,11 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
     env.step(actions);
     stepping += std::chrono::duration<double>(Clock::now() - before).count();
     faults_seen += std::count(env.faulted().begin(), env.faulted().end(), 1);
-    for (int c = 0; c < env.copies(); ++c) episodes_ended += env.terminated()[c] || env.truncated()[c];
+    for (int c = 0; c < env.copies(); ++c)
+      if (env.terminated()[c] || env.truncated()[c]) {
+        episodes_ended += !over[c];
+        over[c] = !scene.env.auto_reset;
+      }
     recorder.record(actions);
     progress.update(t + 1, std::chrono::duration<double>(Clock::now() - start).count());
   }
