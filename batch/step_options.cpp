@@ -50,6 +50,8 @@ std::vector<DofSettings> default_dof_settings(const Model& model) {
     DofSettings& d = dofs[k];
     d.max_force = model.dof_effort_limit[k];
     d.damping = model.dof_damping[k];
+    d.spring_stiffness = model.dof_spring_stiffness[k];
+    d.spring_rest = model.dof_spring_rest[k];
     d.friction = model.dof_friction[k];
     d.lower = model.dof_lower[k];
     d.upper = model.dof_upper[k];

@@ -36,8 +36,8 @@ enum class DriveType { Force, Acceleration };
 enum class FrictionModel { Coulomb, Stribeck };
 
 // Per-DOF joint effects. default_dof_settings(model) fills them from the
-// model (URDF effort, velocity, limits, damping, friction); everything else
-// defaults to off. A Free joint's DOFs take no drive, spring or limit.
+// model (URDF effort, velocity, limits, damping, friction, springs); everything
+// else defaults to off. A Free joint's DOFs take no drive, spring or limit.
 struct DofSettings {
   // drive: tau = clamp(tau_ff + kp (q_target - q) + kd (v_target - v), -max_force, max_force)
   double drive_stiffness = 0.0;  // kp [N m/rad or N/m; 1/s^2 for Acceleration]

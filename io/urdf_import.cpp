@@ -276,7 +276,8 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
     check_child(src, j, j, "origin", {{"xyz", 3}, {"rpy", 3}});
     check_child(src, j, j, "axis", {{"xyz", 3}});
     check_child(src, j, j, "limit", {{"lower", 1}, {"upper", 1}, {"effort", 1}, {"velocity", 1}});
-    check_child(src, j, j, "dynamics", {{"damping", 1}, {"friction", 1}});
+    // stiffness and spring_mount: RaiSim's joint spring
+    check_child(src, j, j, "dynamics", {{"damping", 1}, {"friction", 1}, {"stiffness", 1}, {"spring_mount", 1}});
     check_child(src, j, j, "mimic", {{"multiplier", 1}, {"offset", 1}});
     joints.push_back(raw);
   }
@@ -404,6 +405,11 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
       if (uj->dynamics) {
         j.damping = uj->dynamics->damping;
         j.friction = uj->dynamics->friction;
+      }
+      // urdfdom does not read RaiSim's spring attributes (checked as numbers above)
+      if (const XMLElement* d = v.joint->element->FirstChildElement("dynamics")) {
+        read_attr(src, v.joint->element, d, "stiffness", 1, &j.spring_stiffness);
+        read_attr(src, v.joint->element, d, "spring_mount", 1, &j.spring_rest);
       }
       if (uj->mimic && j.type == JointType::Fixed) {
         // ignored, but a tag naming no joint or itself is malformed all the same

@@ -91,6 +91,8 @@ struct Model {
   std::vector<double> dof_damping;
   std::vector<double> dof_friction;
   std::vector<double> dof_armature;
+  std::vector<double> dof_spring_stiffness;  // joint spring (RaiSim's URDF <dynamics stiffness>), 0 when none
+  std::vector<double> dof_spring_rest;       // its rest position (<dynamics spring_mount>)
 
   // frames: every link the user declared, in low-level order
   std::vector<std::string> frame_name;

@@ -167,13 +167,17 @@ void ModelBuilder::check_joint(const ArticulationSpec& spec, const LinkSpec& lin
                                                    {"effort limit", j.effort_limit},
                                                    {"damping", j.damping},
                                                    {"friction", j.friction},
-                                                   {"armature", j.armature}};
+                                                   {"armature", j.armature},
+                                                   {"spring stiffness", j.spring_stiffness}};
   for (const auto& [what, v] : nonneg) {
     if (std::isnan(v) || v == -Model::kInfinity) throw ModelError(ctx + ": " + what + " is not a number");
     if ((v == Model::kInfinity) && std::string(what).find("limit") == std::string::npos)
       throw ModelError(ctx + ": " + what + " is infinite");
     if (v < 0.0) throw ModelError(ctx + ": negative " + what + " " + num(v));
   }
+  if (!std::isfinite(j.spring_rest)) throw ModelError(ctx + ": spring rest position is not finite");
+  if (j.spring_stiffness != 0.0 && !is_one_dof(j.type))
+    throw ModelError(ctx + ": a spring must be on a revolute or prismatic joint");
   if (!j.mimic.leader_joint.empty()) {
     if (!is_one_dof(j.type)) throw ModelError(ctx + ": a mimic joint must be revolute or prismatic");
     if (j.mimic.leader_joint == j.name) throw ModelError(ctx + ": mimics itself");
@@ -378,6 +382,8 @@ Model ModelBuilder::finalize() const {
           m.dof_damping.push_back(j.damping);
           m.dof_friction.push_back(j.friction);
           m.dof_armature.push_back(j.armature);
+          m.dof_spring_stiffness.push_back(j.spring_stiffness);
+          m.dof_spring_rest.push_back(j.spring_rest);
         }
         m.nq += joint_nq(type);
         m.nv += nv;

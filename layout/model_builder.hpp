@@ -45,6 +45,10 @@ struct JointSpec {
   double damping = 0.0;
   double friction = 0.0;
   double armature = 0.0;
+  // a joint spring, Revolute/Prismatic only (RaiSim's URDF <dynamics
+  // stiffness spring_mount>): torque spring_stiffness (spring_rest - q)
+  double spring_stiffness = 0.0;
+  double spring_rest = 0.0;
   MimicSpec mimic;
   int source_line = 0;  // the joint's line in ArticulationSpec::source, for messages (0: none)
 };

@@ -1,3 +1,4 @@
+#include "batch/simulator.hpp"
 #include "io/urdf_import.hpp"
 #include "test_support.hpp"
 
@@ -113,6 +114,32 @@ TEST(UrdfImport, ReadsJointsInertialsAndLimits) {
   EXPECT_DOUBLE_EQ(m.total_mass(), 3.5);
   ASSERT_EQ(builder.warnings().size(), 1u);
   EXPECT_NE(builder.warnings()[0].find("tool"), std::string::npos);
+}
+
+// RaiSim reads a joint spring from <dynamics stiffness spring_mount>; so
+// does lockstep, into the model and default_dof_settings (they had been
+// dropped without a word). Without gravity a damped joint started at 0
+// settles at the spring's mount.
+TEST(UrdfImport, ReadsRaisimJointSprings) {
+  const Model m = [] {
+    ModelBuilder builder;
+    builder.add_articulation(
+        parse(chain(R"(<axis xyz="0 1 0"/><dynamics damping="0.5" stiffness="20" spring_mount="0.3"/>)")));
+    return builder.finalize();
+  }();
+  ASSERT_EQ(m.nv, 1);
+  EXPECT_EQ(m.dof_spring_stiffness[0], 20.0);
+  EXPECT_EQ(m.dof_spring_rest[0], 0.3);
+  const std::vector<DofSettings> dofs = default_dof_settings(m);
+  EXPECT_EQ(dofs[0].spring_stiffness, 20.0);
+  EXPECT_EQ(dofs[0].spring_rest, 0.3);
+  StepOptions o;
+  o.precision = Precision::Double;
+  o.dt = 0.002;
+  Simulator sim(m, 1, o);
+  sim.set_gravity(0, Eigen::Vector3d::Zero());
+  sim.step(5000);
+  EXPECT_NEAR(sim.q(0)[0], 0.3, 1e-6);
 }
 
 TEST(UrdfImport, ChildrenInFileOrderAndOptions) {
@@ -293,6 +320,18 @@ TEST(UrdfImportError, OutOfRangeLimit) {
 TEST(UrdfImportError, NanDynamics) {
   EXPECT_MODEL_ERROR(parse(chain(R"(<axis xyz="0 1 0"/><dynamics damping="-nan"/>)")), "joint 'shoulder' <dynamics>",
                      "damping");
+}
+
+TEST(UrdfImportError, SpringAttributes) {
+  // (urdfdom wants damping or friction in a <dynamics> tag)
+  EXPECT_MODEL_ERROR(parse(chain(R"(<axis xyz="0 1 0"/><dynamics damping="0" stiffness="stiff"/>)")),
+                     "joint 'shoulder' <dynamics>", "stiffness");
+  EXPECT_MODEL_ERROR(parse(chain(R"(<axis xyz="0 1 0"/><dynamics damping="0" spring_mount="nan"/>)")),
+                     "joint 'shoulder' <dynamics>", "spring_mount");
+  ModelBuilder builder;
+  EXPECT_MODEL_ERROR(
+      builder.add_articulation(parse(chain(R"(<axis xyz="0 1 0"/><dynamics damping="0" stiffness="-2"/>)"))),
+      "test.urdf:4: joint 'shoulder'", "negative spring stiffness");
 }
 
 TEST(UrdfImportError, PlanarJoint) {
