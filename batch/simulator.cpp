@@ -5,8 +5,10 @@
 #include "batch/require.hpp"
 #include "batch/step_engine.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -117,6 +119,34 @@ void clear_warm_start(StepBatch<T>& b, int copy) {
 // has no negative principal minor (Sylvester's criterion for semidefinite
 // matrices: all seven minors, not only the three leading ones). Their
 // round-off, about 1e-16 of the entries' scale, is far below the tolerance.
+// Finite in the arithmetic the copies run in: a float simulator would store
+// a double beyond float's range (3.4e38) as inf.
+bool finite_in(Precision p, double x) {
+  return std::isfinite(x) && (p == Precision::Double || std::abs(x) <= std::numeric_limits<float>::max());
+}
+
+template <class Derived>
+bool all_finite_in(Precision p, const Eigen::DenseBase<Derived>& x) {
+  for (Eigen::Index i = 0; i < x.size(); ++i)
+    if (!finite_in(p, x.derived().data()[i])) return false;
+  return true;
+}
+
+// An enum's value among its enumerators [0, last] (an integer cast to it
+// need not be).
+template <class E>
+bool enumerated(E value, E last) {
+  return static_cast<int>(value) >= 0 && static_cast<int>(value) <= static_cast<int>(last);
+}
+
+template <class E>
+std::string not_enumerated(const char* field, E value) {
+  return std::string(field) + " holds " + std::to_string(static_cast<int>(value)) + ", which is none of its values";
+}
+
+// What "finite" means in messages: float's range too.
+std::string finite_word(Precision p) { return p == Precision::Float ? "finite (in float, within 3.4e38)" : "finite"; }
+
 bool symmetric_positive_semidefinite(const Eigen::Matrix3d& inertia) {
   const double tolerance = 1e-12 * std::max(1.0, inertia.diagonal().cwiseAbs().maxCoeff());
   if ((inertia - inertia.transpose()).cwiseAbs().maxCoeff() > tolerance) return false;
@@ -128,8 +158,18 @@ bool symmetric_positive_semidefinite(const Eigen::Matrix3d& inertia) {
 
 void validate(const Model& model, int copies, const StepOptions& o, const std::vector<DofSettings>& dofs) {
   require(copies >= 1, "Simulator: copies must be at least 1, got " + std::to_string(copies));
-  require(std::isfinite(o.dt) && o.dt > 0, "StepOptions::dt must be positive and finite, got " + std::to_string(o.dt));
+  // and its substeps positive in the precision the step runs in
+  require(finite_in(o.precision, o.dt) && o.dt > 0 &&
+              (o.precision == Precision::Double || static_cast<float>(o.dt / std::max(1, o.substeps)) > 0),
+          "StepOptions::dt must be positive and " + finite_word(o.precision) + ", got " + std::to_string(o.dt));
   require(o.substeps >= 1, "StepOptions::substeps must be at least 1, got " + std::to_string(o.substeps));
+  require(enumerated(o.precision, Precision::Double), not_enumerated("StepOptions::precision", o.precision));
+  require(enumerated(o.solver, SolverType::TGS), not_enumerated("StepOptions::solver", o.solver));
+  require(enumerated(o.integrator, Integrator::RK4), not_enumerated("StepOptions::integrator", o.integrator));
+  require(enumerated(o.lanes, Lanes::Scalar), not_enumerated("StepOptions::lanes", o.lanes));
+  for (int stage = 0; stage < kStageCount; ++stage)
+    require(enumerated(o.stages[stage], StageMode::Off),
+            not_enumerated(("StepOptions::stages[" + std::to_string(stage) + "]").c_str(), o.stages[stage]));
   require(o.iterations >= 1, "StepOptions::iterations must be at least 1, got " + std::to_string(o.iterations));
   require(o.error_reduction >= 0 && o.error_reduction <= 1,
           "StepOptions::error_reduction must lie in [0, 1], got " + std::to_string(o.error_reduction));
@@ -146,7 +186,8 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     const JointType type = model.body_joint[model.dof_body[k]];
     const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
     auto non_negative = [&](double x, const char* name) {
-      require(std::isfinite(x) && x >= 0, where + name + " must be finite and >= 0, got " + std::to_string(x));
+      require(finite_in(o.precision, x) && x >= 0,
+              where + name + " must be " + finite_word(o.precision) + " and >= 0, got " + std::to_string(x));
     };
     non_negative(d.drive_stiffness, "drive_stiffness");
     non_negative(d.drive_damping, "drive_damping");
@@ -157,15 +198,20 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     non_negative(d.stribeck_velocity, "stribeck_velocity");
     non_negative(d.limit_stiffness, "limit_stiffness");
     non_negative(d.limit_damping, "limit_damping");
-    require(std::isfinite(d.falloff_velocity) && d.falloff_velocity > 0,
+    require(finite_in(o.precision, d.falloff_velocity) && d.falloff_velocity > 0,
             where + "falloff_velocity must be positive, got " + std::to_string(d.falloff_velocity));
     require(d.max_force > 0, where + "max_force must be positive (+inf for none), got " + std::to_string(d.max_force));
     require(d.velocity_limit > 0,
             where + "velocity_limit must be positive (+inf for none), got " + std::to_string(d.velocity_limit));
-    require(std::isfinite(d.spring_rest), where + "spring_rest must be finite");
+    require(finite_in(o.precision, d.spring_rest), where + "spring_rest must be " + finite_word(o.precision));
     require(!std::isnan(d.lower) && !std::isnan(d.upper), where + "lower and upper limits must be numbers (+-inf for none)");
     require(!(d.lower > d.upper), where + "lower limit " + std::to_string(d.lower) + " above upper " +
                                       std::to_string(d.upper));
+    require(d.lower < Model::kInfinity && d.upper > -Model::kInfinity,
+            where + "a lower limit of +inf or an upper one of -inf leaves no range (-inf and +inf are none)");
+    require(enumerated(d.drive_type, DriveType::Acceleration), where + not_enumerated("drive_type", d.drive_type));
+    require(enumerated(d.friction_model, FrictionModel::Stribeck),
+            where + not_enumerated("friction_model", d.friction_model));
     if (type == JointType::Free)
       require(d.drive_stiffness == 0 && d.drive_damping == 0,
               where + "a floating base takes no drive (set the gains of its 6 DOFs to 0)");
@@ -185,13 +231,12 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
   }
 }
 
-// Counts DOFs with a property and turns the count into a decision.
-StageDecision decide(Stage stage, StageMode mode, int count, const std::string& what) {
+// Whether the scene needs a stage, and what was found, into a decision.
+StageDecision decide(Stage stage, StageMode mode, bool needed, const std::string& found) {
   StageDecision d{stage, false, ""};
-  const std::string found = count > 0 ? std::to_string(count) + " " + what : "no " + what;
   switch (mode) {
     case StageMode::Auto:
-      d.runs = count > 0;
+      d.runs = needed;
       d.reason = found;
       break;
     case StageMode::On:
@@ -204,6 +249,14 @@ StageDecision decide(Stage stage, StageMode mode, int count, const std::string& 
       break;
   }
   return d;
+}
+
+// Counts DOFs (pairs, copies) with a property and turns the count into a
+// decision; `also`, when not empty, is a further reason the stage is needed.
+StageDecision decide(Stage stage, StageMode mode, int count, const std::string& what, const std::string& also = "") {
+  const std::string found = (count > 0 ? std::to_string(count) + " " + what : "no " + what) +
+                            (also.empty() ? "" : ", and " + also);
+  return decide(stage, mode, count > 0 || !also.empty(), found);
 }
 
 }  // namespace
@@ -265,8 +318,8 @@ void Simulator::make_plan() const {
     const JointType type = model_->body_joint[model_->dof_body[k]];
     const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
     const bool limited = one_dof && (std::isfinite(d.lower) || std::isfinite(d.upper));
-    drives += d.drive_stiffness > 0 || d.drive_damping > 0 || (per_copy_gains_ && type != JointType::Free);
-    damping += d.damping > 0 || per_copy_damping_;
+    drives += d.drive_stiffness > 0 || d.drive_damping > 0;
+    damping += d.damping > 0;
     springs += d.spring_stiffness > 0;
     soft += limited && d.limit_stiffness > 0;
     hard += limited && d.limit_stiffness == 0;
@@ -276,13 +329,15 @@ void Simulator::make_plan() const {
   }
   auto mode = [&](Stage s) { return options_.stages[static_cast<int>(s)]; };
   plan_ = {
-      decide(Stage::Drives, mode(Stage::Drives), drives, "DOFs with drive gains"),
-      decide(Stage::Damping, mode(Stage::Damping), damping, "DOFs with damping"),
+      decide(Stage::Drives, mode(Stage::Drives), drives, "DOFs with drive gains",
+             per_copy_gains_ ? "copies given gains by set_drive_gains" : ""),
+      decide(Stage::Damping, mode(Stage::Damping), damping, "DOFs with damping",
+             per_copy_damping_ ? "copies given damping by set_joint_damping" : ""),
       decide(Stage::Springs, mode(Stage::Springs), springs, "DOFs with springs"),
       decide(Stage::SoftLimits, mode(Stage::SoftLimits), soft, "DOFs with spring-damper limits"),
       decide(Stage::StribeckFriction, mode(Stage::StribeckFriction), stribeck, "DOFs with Stribeck friction"),
-      decide(Stage::ExternalWrenches, mode(Stage::ExternalWrenches), wrenches_used_ ? 1 : 0,
-             "calls of set_link_wrench"),
+      decide(Stage::ExternalWrenches, mode(Stage::ExternalWrenches), wrenches_used_,
+             wrenches_used_ ? "set_link_wrench called" : "no calls of set_link_wrench"),
       decide(Stage::PerCopyInertia, mode(Stage::PerCopyInertia), copies_with_any(own_inertia_bodies_),
              "copies with their own inertial parameters"),
       decide(Stage::PerCopyJointParameters, mode(Stage::PerCopyJointParameters), copies_with_any(own_joint_parameters_),
@@ -457,7 +512,9 @@ void Simulator::checked_configuration(const Eigen::VectorXd& q, const char* what
   });
   out = q;  // no allocation once out has nq entries
   for (int i = 0; i < q.size(); ++i)
-    require(std::isfinite(q[i]), [&] { return std::string(what) + ": entry " + std::to_string(i) + " is not finite"; });
+    require(finite_in(options_.precision, q[i]), [&] {
+      return std::string(what) + ": entry " + std::to_string(i) + " is not " + finite_word(options_.precision);
+    });
   normalize_quaternions(out, what, true);
 }
 
@@ -486,7 +543,9 @@ void Simulator::set_state(int copy, const Eigen::VectorXd& q, const Eigen::Vecto
   checked_configuration(q, "set_state q", qn);
   check_velocity(v, "set_state v");
   for (int k = 0; k < v.size(); ++k)
-    require(std::isfinite(v[k]), [&] { return "set_state v: entry " + std::to_string(k) + " is not finite"; });
+    require(finite_in(options_.precision, v[k]), [&] {
+      return "set_state v: entry " + std::to_string(k) + " is not " + finite_word(options_.precision);
+    });
   visit([&](auto& b) {
     b.state.q.set(copy, qn);
     b.state.v.set(copy, v);
@@ -647,9 +706,11 @@ void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen
   check_velocity(kp, "set_drive_gains kp");
   check_velocity(kd, "set_drive_gains kd");
   for (int k = 0; k < model_->nv; ++k) {
-    require(std::isfinite(kp[k]) && kp[k] >= 0 && std::isfinite(kd[k]) && kd[k] >= 0, [&] {
-      return "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] + ") needs finite gains >= 0";
-    });
+    require(finite_in(options_.precision, kp[k]) && kp[k] >= 0 && finite_in(options_.precision, kd[k]) && kd[k] >= 0,
+            [&] {
+              return "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] + ") needs " +
+                     finite_word(options_.precision) + " gains >= 0";
+            });
     if (model_->body_joint[model_->dof_body[k]] == JointType::Free)
       require(kp[k] == 0 && kd[k] == 0, [&] {
         return "set_drive_gains: DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
@@ -667,9 +728,9 @@ void Simulator::set_drive_gains(int copy, const Eigen::VectorXd& kp, const Eigen
 void Simulator::check_per_dof(const Eigen::VectorXd& values, const char* what) const {
   check_velocity(values, what);
   for (int k = 0; k < model_->nv; ++k)
-    require(std::isfinite(values[k]) && values[k] >= 0, [&] {
-      return std::string(what) + ": DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
-             ") needs a finite value >= 0";
+    require(finite_in(options_.precision, values[k]) && values[k] >= 0, [&] {
+      return std::string(what) + ": DOF " + std::to_string(k) + " (" + model_->dof_name[k] + ") needs a " +
+             finite_word(options_.precision) + " value >= 0";
     });
 }
 
@@ -718,8 +779,10 @@ void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::V
     return "set_body_inertia: body " + std::to_string(body) + " (" + model_->frame_name[model_->body_frame[body]] +
            "): ";
   };
-  require(std::isfinite(mass) && mass >= 0, [&] { return where() + "mass must be finite and >= 0"; });
-  require(com.allFinite() && inertia.allFinite(), [&] { return where() + "COM and inertia must be finite"; });
+  const Precision p = options_.precision;
+  require(finite_in(p, mass) && mass >= 0, [&] { return where() + "mass must be " + finite_word(p) + " and >= 0"; });
+  require(all_finite_in(p, com) && all_finite_in(p, inertia),
+          [&] { return where() + "COM and inertia must be " + finite_word(p); });
   require(symmetric_positive_semidefinite(inertia),
           [&] { return where() + "the rotational inertia must be symmetric positive semidefinite"; });
   const bool own_before = body_has_own_inertia(copy, body);
@@ -826,9 +889,13 @@ void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& norma
     return "set_ground: the scene's contacts do not run (" + plan_[static_cast<int>(Stage::Contacts)].reason +
            "), so it keeps no ground per copy";
   });
-  require(std::isfinite(height), "set_ground: height must be finite");
-  require(normal.allFinite() && normal.norm() > 1e-9, "set_ground: normal must be a finite non-zero vector");
-  require(std::isfinite(friction) && friction >= 0, "set_ground: friction must be finite and >= 0");
+  const Precision p = options_.precision;
+  // messages built only on failure: a reset calls this, and allocates nothing
+  require(finite_in(p, height), [&] { return "set_ground: height must be " + finite_word(p); });
+  require(all_finite_in(p, normal) && normal.norm() > 1e-9,
+          [&] { return "set_ground: normal must be a " + finite_word(p) + " non-zero vector"; });
+  require(finite_in(p, friction) && friction >= 0,
+          [&] { return "set_ground: friction must be " + finite_word(p) + " and >= 0"; });
   visit([&](auto& b) {
     b.ground.set(copy, ground_plane(normal, height));
     b.ground_friction.fill(copy, friction);

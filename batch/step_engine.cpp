@@ -22,6 +22,15 @@ lane::mask_t<L> any_non_finite(const lane::scalar_t<L>* p, int n) {
   return bad;
 }
 
+// The same over the fields listed.
+template <class L>
+lane::mask_t<L> any_non_finite(const lane::scalar_t<L>* p, const std::vector<int>& fields) {
+  constexpr std::size_t W = lane::width_v<L>;
+  lane::mask_t<L> bad(false);
+  for (int k : fields) bad = bad || !lane::is_finite(lane::load<L>(p + k * W));
+  return bad;
+}
+
 template <class L>
 L fault_code(Fault f) {
   return L(static_cast<lane::scalar_t<L>>(static_cast<int>(f)));
@@ -83,6 +92,12 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
       }
   }
   batch_.momentum_remainder = BatchArray<T>(copies, 3 * static_cast<int>(floating_roots_.size()), kWidth);
+  for (int b = 0; b < model.nbody; ++b) {
+    const JointType type = model.body_joint[b];
+    if (type == JointType::Free) continue;
+    for (int i = 0; i < joint_nq(type); ++i) driven_q_.push_back(model.body_q_offset[b] + i);
+    for (int i = 0; i < joint_nv(type); ++i) driven_v_.push_back(model.body_dof_offset[b] + i);
+  }
 
   // Solver rows, DOF by DOF: position limit, velocity limit, friction.
   auto add_row = [&](JointRowKind kind, int k, double a, double b) {
@@ -356,8 +371,9 @@ void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
   const std::pair<lane::mask_t<L>, Fault> checks[] = {
       {any_non_finite<L>(B.state.gravity.block(block), 3), Fault::NonFiniteGravity},
       {any_non_finite<L>(B.state.wrench.block(block), plan_.wrenches ? 6 * km_.nbody : 0), Fault::NonFiniteWrench},
-      {any_non_finite<L>(B.target_q.block(block), plan_.drives ? nq : 0) ||
-           any_non_finite<L>(B.target_v.block(block), plan_.drives ? nv : 0),
+      {plan_.drives ? any_non_finite<L>(B.target_q.block(block), driven_q_) ||
+                          any_non_finite<L>(B.target_v.block(block), driven_v_)
+                    : lane::mask_t<L>(false),
        Fault::NonFiniteTarget},
       {any_non_finite<L>(tau_ff, nv), Fault::NonFiniteTorque}};
   for (const auto& [bad, code] : checks) s.input_fault = lane::select(bad, fault_code<L>(code), s.input_fault);

@@ -221,6 +221,9 @@ class StepEngine final : public Simulator::Engine {
   // and per body the root whose momentum it counts in (-1: none)
   std::vector<int> floating_roots_;
   std::vector<int> momentum_root_;
+  // The entries of q and v that drive targets have: every joint's but a
+  // Free joint's (it takes no drive, and its target is not read).
+  std::vector<int> driven_q_, driven_v_;
   ContactParams<T> contact_params_;
   StepBatch<T> batch_;
   BatchArray<T> model_inertia_;  // one block of the model's inertial parameters

@@ -24,7 +24,8 @@ const char* integrator_name(Integrator integrator);
 // PhysX's drive types: a Force drive outputs stiffness * error + damping *
 // velocity error as a force; an Acceleration drive outputs it as a joint
 // acceleration (gains in 1/s^2 and 1/s), i.e. scaled by the joint's
-// articulated inertia, so the response does not depend on the links' masses.
+// articulated inertia, so one DOF's response does not depend on the links'
+// masses (docs/conventions.md: chains, Spherical joints).
 enum class DriveType { Force, Acceleration };
 
 // Coulomb: a solver row that stops the joint if the friction force can, the

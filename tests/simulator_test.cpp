@@ -679,6 +679,34 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
   box_dofs = default_dof_settings(box);
   box_dofs[3].upper = 1.0;
   expect_error_for(box, StepOptions(), box_dofs, "position limits act on revolute and prismatic joints only");
+  // integers cast to an enum, and limits that leave no range: refused (they
+  // were read as a Force drive, Coulomb friction, or no limit at all)
+  dofs = default_dof_settings(model);
+  dofs[0].drive_type = static_cast<DriveType>(7);
+  expect_error(StepOptions(), dofs, "DOF 0 (wheel_joint): drive_type holds 7, which is none of its values");
+  dofs = default_dof_settings(model);
+  dofs[0].friction_model = static_cast<FrictionModel>(7);
+  expect_error(StepOptions(), dofs, "friction_model holds 7");
+  o = StepOptions();
+  o.integrator = static_cast<Integrator>(9);
+  expect_error(o, {}, "StepOptions::integrator holds 9");
+  o = StepOptions();
+  o.stages[2] = static_cast<StageMode>(9);
+  expect_error(o, {}, "StepOptions::stages[2] holds 9");
+  dofs = default_dof_settings(model);
+  dofs[0].lower = dofs[0].upper = Model::kInfinity;
+  expect_error(StepOptions(), dofs,
+               "DOF 0 (wheel_joint): a lower limit of +inf or an upper one of -inf leaves no range");
+  // in float, a double beyond float's range would be stored as inf
+  o = StepOptions();
+  o.precision = Precision::Float;
+  dofs = default_dof_settings(model);
+  dofs[0].drive_stiffness = 1e39;
+  expect_error_for(model, o, dofs, "drive_stiffness must be finite (in float, within 3.4e38)");
+  o.dt = 1e-46;  // 0 in float
+  expect_error_for(model, o, {}, "StepOptions::dt must be positive");
+  o.precision = Precision::Double;
+  EXPECT_NO_THROW(Simulator(model, 1, o, dofs));
   Simulator sim(model, 2);
   sim.set_state(0, Eigen::VectorXd::Constant(1, 0.25), Eigen::VectorXd::Constant(1, 1.0));
   try {
@@ -696,6 +724,70 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
   EXPECT_THROW(sim.set_state(2, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1)), std::out_of_range);
   EXPECT_THROW(sim.set_torque(0, Eigen::VectorXd::Zero(3)), std::invalid_argument);
   EXPECT_THROW(sim.batch<double>(), std::logic_error);
+}
+
+// In float, the setters refuse doubles beyond float's range: stored, they
+// became inf, and set_state's inf velocity, the copy's initial state too,
+// faulted it at every step even with reset_on_fault.
+TEST(Simulator, FloatSettersRefuseValuesBeyondFloatsRange) {
+  const Model model = spinner(0.1, -1.0, 1.0);
+  StepOptions o;
+  o.precision = Precision::Float;
+  Simulator sim(model, 1, o);
+  const Eigen::VectorXd big = Eigen::VectorXd::Constant(1, 1e39), zero = Eigen::VectorXd::Zero(1);
+  EXPECT_THROW_WITH(sim.set_state(0, zero, big), std::invalid_argument,
+                    "set_state v: entry 0 is not finite (in float, within 3.4e38)");
+  EXPECT_THROW_WITH(sim.set_drive_gains(0, big, zero), std::invalid_argument,
+                    "needs finite (in float, within 3.4e38) gains");
+  EXPECT_THROW_WITH(sim.set_joint_damping(0, big), std::invalid_argument, "finite (in float, within 3.4e38) value");
+  EXPECT_THROW_WITH(sim.set_body_inertia(0, 0, 1e39, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity()),
+                    std::invalid_argument, "mass must be finite (in float, within 3.4e38)");
+  sim.set_state(0, zero, Eigen::VectorXd::Constant(1, 3e38));  // within range: kept
+  EXPECT_EQ(sim.v(0)[0], static_cast<double>(3e38f));
+}
+
+// A Free joint takes no drive, and its entries of the drive target are not
+// read: a NaN there once faulted the copy all the same.
+TEST(Simulator, AFloatingBasesUnreadTargetDoesNotFault) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (int k = 6; k < model.nv; ++k) dofs[k].drive_stiffness = 10.0;
+  StepOptions o;
+  o.precision = Precision::Double;
+  Simulator sim(model, 2, o, dofs);
+  Eigen::VectorXd target = model.neutral_configuration();
+  sim.set_drive_target(0, target, Eigen::VectorXd::Zero(model.nv));
+  target[0] = std::nan("");  // the base's x
+  Eigen::VectorXd v_target = Eigen::VectorXd::Zero(model.nv);
+  v_target[0] = std::nan("");
+  sim.set_drive_target(1, target, v_target);
+  sim.step(3);
+  EXPECT_EQ(sim.fault(1), Fault::None);
+  EXPECT_EQ(sim.q(1), sim.q(0));
+  EXPECT_EQ(sim.v(1), sim.v(0));
+  target[7] = std::nan("");  // a leg's: read, and it faults
+  sim.set_drive_target(1, target, Eigen::VectorXd::Zero(model.nv));
+  sim.step();
+  EXPECT_EQ(sim.fault(1), Fault::NonFiniteTarget);
+}
+
+// The plan's reasons count the scene's DOFs and say what else turned a
+// stage on: per-copy gains or damping, or set_link_wrench (it once counted
+// every DOF as having gains once one copy had some, and "1 calls").
+TEST(Simulator, PlanNamesPerCopySettersAsTheReason) {
+  const Model model = test::load_shared_model("anymal_b", true);
+  Simulator sim(model, 4);
+  Eigen::VectorXd kp = Eigen::VectorXd::Zero(model.nv), damping = Eigen::VectorXd::Zero(model.nv);
+  kp[7] = 10.0;
+  damping[9] = 0.5;
+  sim.set_drive_gains(2, kp, Eigen::VectorXd::Zero(model.nv));
+  sim.set_joint_damping(1, damping);
+  sim.set_link_wrench(0, 0, Eigen::Matrix<double, 6, 1>::Zero());
+  const std::string plan = sim.describe_plan();
+  for (const char* line : {"  drives: runs (no DOFs with drive gains, and copies given gains by set_drive_gains)\n",
+                           "  damping: runs (no DOFs with damping, and copies given damping by set_joint_damping)\n",
+                           "  external wrenches: runs (set_link_wrench called)\n"})
+    EXPECT_NE(plan.find(line), std::string::npos) << line << plan;
 }
 
 // The per-copy setters name what is wrong and leave the copy as it was.
