@@ -838,5 +838,78 @@ TEST(Collision, RandomBoxPairsSeparateAlongTheNormal) {
   EXPECT_GT(exact_depth, overlapping * 8 / 10);
 }
 
+// The distance of two boxes apart: the least over the corners of each to
+// the other box and over the pairs of their edges (convex polyhedra meet
+// vertex to face or edge to edge).
+double box_distance(const M3& Ra, const V3& pa, const V3& ha, const M3& Rb, const V3& pb, const V3& hb) {
+  double least = kInf;
+  for (int i = 0; i < 8; ++i) {
+    const V3 corner((i & 1) ? 1 : -1, (i & 2) ? 1 : -1, (i & 4) ? 1 : -1);
+    least = std::min(least, point_box(pa + Ra * corner.cwiseProduct(ha), Rb, pb, hb));
+    least = std::min(least, point_box(pb + Rb * corner.cwiseProduct(hb), Ra, pa, ha));
+  }
+  auto edges = [](const M3& R, const V3& p, const V3& h, auto&& each) {  // each(centre, unit direction, half length)
+    for (int k = 0; k < 3; ++k)
+      for (int s = 0; s < 4; ++s) {
+        const int i = (k + 1) % 3, j = (k + 2) % 3;
+        each(p + R.col(i) * ((s & 1) ? h[i] : -h[i]) + R.col(j) * ((s & 2) ? h[j] : -h[j]), V3(R.col(k)), h[k]);
+      }
+  };
+  edges(Ra, pa, ha, [&](const V3& ca, const V3& ua, double la) {
+    edges(Rb, pb, hb, [&](const V3& cb, const V3& ub, double lb) {
+      least = std::min(least, convex_min([&](double t) { return point_segment(ca + t * ua, cb, ub, lb); }, -la, la));
+    });
+  });
+  return least;
+}
+
+// Box pairs apart: the least candidate separation is a lower bound of the
+// distance (1e-9), near the separating-axis test's gap. Before, only the
+// points over the reference face were candidates, and a corner hanging
+// past the face's edge left all of them farther than the distance: for
+// the pose below 0.0156 against a distance of 0.0101, at worst 0.112
+// against 0.0108, and a box moving at 3 m/s sank 17 mm into another.
+template <class T>
+void apart_boxes_separation_is_a_lower_bound() {
+  const double tolerance = std::is_same_v<T, double> ? 1e-9 : 2e-6;
+  const M3 I = M3::Identity();
+  const V3 big(0.5, 0.5, 0.5), small(0.1, 0.1, 0.1);
+  for (const auto& [quaternion, position] :
+       {std::pair{Eigen::Quaterniond(-0.483468, 0.624369, -0.511727, -0.338463), V3(0.566019, 0.056575, 0.657819)},
+        std::pair{Eigen::Quaterniond(0.221337, 0.684375, -0.230019, -0.655539), V3(0.598119, -0.099289, 0.654253)}}) {
+    const M3 R = quaternion.normalized().toRotationMatrix();
+    const double distance = box_distance(I, V3::Zero(), big, R, position, small);
+    const auto on = box_box_existing<T>(I, V3::Zero(), big, R, position, small);
+    ASSERT_FALSE(on.empty());
+    double least = kInf;
+    for (const auto& c : on) least = std::min(least, double(c.separation));
+    EXPECT_LE(least, distance + tolerance) << "distance " << distance;
+    EXPECT_GT(least, 0.0);
+  }
+}
+
+TEST(Collision, ApartBoxesSeparationIsALowerBoundOfTheDistance) {
+  apart_boxes_separation_is_a_lower_bound<double>();
+  apart_boxes_separation_is_a_lower_bound<float>();
+  std::mt19937 rng(13);
+  int apart = 0;
+  for (int scene = 0; scene < 600; ++scene) {
+    const Scene<double> s = random_scene(rng);
+    const M3 Ra = mat(s.A), Rb = mat(s.B);
+    const double gap = box_gap(Ra, eig(s.A.p), eig(s.ha), Rb, eig(s.B.p), eig(s.hb));
+    if (gap <= 0) continue;
+    ++apart;
+    ContactCandidate<double> out[kBoxBoxCandidates];
+    collide<double>(kBoxBox, s, out);
+    double least = kInf;
+    for (const auto& c : out) least = std::min(least, c.separation);
+    const double distance = box_distance(Ra, eig(s.A.p), eig(s.ha), Rb, eig(s.B.p), eig(s.hb));
+    const std::string what = "scene " + std::to_string(scene) + ", distance " + std::to_string(distance);
+    EXPECT_LE(least, distance + 1e-9) << what;
+    EXPECT_GE(least, 0.95 * gap - 1e-9) << what;  // the test's gap, or a face's within 5 % of an edge's
+  }
+  EXPECT_GT(apart, 100);
+}
+
 }  // namespace
 }  // namespace lockstep
