@@ -190,6 +190,11 @@ ContactPairs build_contact_pairs(const Model& model, const ContactSettings& sett
                                     "\"): " + e.what());
       }
       into.insert(std::minmax(fx, fy));
+      // the name cannot lift the first filter below: say so, not nothing
+      if (&into == &enabled && model.frame_body[fx] == model.frame_body[fy])
+        out.notes.push_back(std::string("enabled pair (\"") + x + "\", \"" + y + "\"): " +
+                            (model.frame_body[fx] < 0 ? "both static" : "one body (links fused by fixed joints)") +
+                            ", and such shapes never touch");
     }
   };
   frame_pairs(settings.enabled_pairs, "enabled_pairs", enabled);

@@ -40,7 +40,7 @@ struct ContactPairs {
   std::vector<ContactPair> pairs;
   int candidates = 0;  // total narrowphase points
   std::vector<int> candidate_pair;  // (candidates) the pair each candidate number belongs to
-  std::vector<std::string> notes;  // shapes left out and why (meshes)
+  std::vector<std::string> notes;  // shapes left out and why (meshes), named pairs that cannot touch
 };
 
 // Throws std::invalid_argument for a named pair that names no link.

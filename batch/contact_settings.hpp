@@ -54,11 +54,13 @@ struct ContactSettings {
   // One entry per model shape (Model::shapes), or empty for the defaults.
   std::vector<ShapeContact> shapes;
   // Contacts between links of one articulation, per articulation (empty:
-  // off for all). Adjacent links, links fused by fixed joints and links
-  // joined through shapeless links never touch unless enabled by name.
+  // off for all). Adjacent links and links joined through shapeless links
+  // never touch unless enabled by name; links fused by fixed joints (one
+  // body) never touch at all.
   std::vector<bool> self_collision;
   // Link (URDF frame) name pairs, symmetric, overriding every filter above:
-  // enabled pairs always touch, disabled pairs never do.
+  // enabled pairs touch (unless both static or on one body: a note says
+  // so), disabled pairs never do.
   std::vector<std::pair<std::string, std::string>> enabled_pairs, disabled_pairs;
 
   int capacity = 16;      // contact points kept per copy per step (at most kMaxContactCapacity); more are dropped and counted

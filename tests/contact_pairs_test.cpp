@@ -155,6 +155,14 @@ TEST(ContactPairs, NamedPairsOverrideAndLayersFilter) {
   EXPECT_EQ(pair_names(model, s), (Names{{"b", "ground"}, {"c", "ground"}, {"d", "ground"}, {"e", "ground"}}));
   s.enabled_pairs = {{"a", "nope"}};
   expect_invalid([&] { build_contact_pairs(model, s); }, "nope");
+  // a name cannot make one body touch itself (e is fused into d): noted, where it once went unsaid
+  s = ContactSettings{};
+  s.self_collision = {true};
+  s.enabled_pairs = {{"d", "e"}};
+  EXPECT_EQ(pair_names(model, s), (Names{{"a", "c"}, {"a", "d"}, {"a", "e"}, {"b", "d"}, {"b", "e"}}));
+  EXPECT_EQ(build_contact_pairs(model, s).notes,
+            std::vector<std::string>{"enabled pair (\"d\", \"e\"): one body (links fused by fixed joints), and such "
+                                     "shapes never touch"});
 }
 
 TEST(ContactPairs, BadSettingsAreNamed) {
