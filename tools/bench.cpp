@@ -488,6 +488,8 @@ std::optional<std::string> mujoco_difference(const Scene& scene) {
     if (!gains) gains = {d.drive_stiffness, d.drive_damping};
     if (gains->first != d.drive_stiffness || gains->second != d.drive_damping)
       return "the scene's drive gains differ between joints; the MuJoCo peer takes one kp and kd";
+    if (d.spring_stiffness != 0)
+      return "the scene has joint springs (" + scene.model.dof_name[k] + "), which MuJoCo's URDF reader does not take";
   }
   return std::nullopt;
 }
