@@ -300,7 +300,7 @@ TEST_P(ContactPrecision, CollisionImpulsesKeepLinearMomentum) {
 
 // The whole collision, 0.3 s of it (the ball bounces off within 40 ms), in
 // double: the momentum drift (see above) is first order in dt. Measured:
-// 4.5e-4 of |p0| at dt = 2 ms, 2.3e-4 at 1 ms (before the Free joints'
+// 5.4e-4 of |p0| at dt = 2 ms, 2.7e-4 at 1 ms (before the Free joints'
 // velocities were integrated in the start-of-step frame: 2.6e-3 at 2 ms,
 // most of it the spinning ball's). Asserted: below 1e-3 at 2 ms, and
 // halving dt divides it by 1.6 to 2.4.

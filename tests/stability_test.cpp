@@ -487,12 +487,12 @@ TEST(StabilityFreeBody, SpinningBoxKeepsItsWorldVelocity) {
 // Euler, with the joints' velocity-product forces explicit (the root's
 // gyroscopic force is implicit), has O(dt) errors in both. Measured: max
 // KE / KE0 = 1.0037 (1.0097 at 2 ms, 1.0011 at 0.5 ms), |L - L0| / |L0| up
-// to 2.1 %. Bounds: no fault, KE / KE0 <
+// to 1.5 %. Bounds: no fault, KE / KE0 <
 // 1.01, momentum drift < 5 %, the base's angular speed not above its start
 // by more than 1 % (nothing can spin it up), and no joint faster than
 // 20 rad/s (twice the spin; measured 7.0). Every joint keeps its velocity
 // limit to within the residual of 16 PGS sweeps over coupled rows: 1 %
-// (measured 0.64 %; docs/stability.md, "Velocity limits").
+// (measured 0.54 %; docs/stability.md, "Velocity limits").
 TEST(StabilityHumanoid, SpinningTalosStaysBoundedAndKeepsItsMomentum) {
   const Model model = test::load_shared_model("talos_reduced", true);
   const CopyDynamics dyn(model, Precision::Double);
