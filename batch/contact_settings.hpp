@@ -72,14 +72,16 @@ struct ContactSettings {
   double margin = 0.001;            // m
   double speculative_speed = 0.5;   // m/s
   // Compliance: a spring-damper normal force k (penetration) + c (approach
-  // speed), integrated implicitly. stiffness 0: rigid, with the step's
+  // speed), integrated implicitly (backward Euler: it damps as c + k h
+  // would, docs/contacts.md). stiffness 0: rigid, with the step's
   // error_reduction removing penetration.
   double stiffness = 0.0;  // N/m
   double damping = 0.0;    // N s/m, used only with stiffness > 0
   double bounce_threshold = 0.2;   // m/s: slower impacts do not bounce
-  // m/s: a penetration is pushed out no faster than this (PhysX's
-  // maxDepenetrationVelocity), so a body started deep inside another
-  // separates instead of flying off; bounces are not capped.
+  // m/s: a rigid contact's penetration is pushed out no faster than this
+  // (PhysX's maxDepenetrationVelocity), so a body started deep inside
+  // another separates instead of flying off; bounces and compliant
+  // contacts (their spring sets the force) are not capped.
   double max_depenetration_speed = 1.0;
   double torsional_friction = 0.0; // m: torque about the normal up to this times the normal force (0: none)
 };

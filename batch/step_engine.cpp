@@ -616,7 +616,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   RowBlock<L>& contact_rows = s.needed;
   contact_rows.m = mc;
   if (mc > 0) {
-    build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), h, contacts, contact_rows);
+    build_contact_rows<L>(contact_params_, contact_arrays(block), s.u1.data(), s.u0.data(), h, contacts, contact_rows);
     rest = rest && contact_rows_at_rest<L>(contact_rows, contacts);
   }
   s.rows_at_rest = rest;

@@ -283,10 +283,13 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
 
 // The slots' rows into rows [0, k slots) of `rows` (the solver's block of
 // contact rows), from the free velocity u (nv), and each slot's warm start: last step's impulses of
-// the point with the same candidate number. h is the (sub)step.
+// the point with the same candidate number. h is the (sub)step; u_start
+// (nv) the velocity the (sub)step started from, whose approach speed a
+// bounce returns.
 template <class L>
 void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const ContactArrays<lane::scalar_t<L>>& arrays,
-                        const L* u, lane::scalar_t<L> h, ContactScratch<L>& s, RowBlock<L>& rows) {
+                        const L* u, const L* u_start, lane::scalar_t<L> h, ContactScratch<L>& s,
+                        RowBlock<L>& rows) {
   using T = lane::scalar_t<L>;
   using contact_detail::dot_n;
   constexpr std::size_t W = lane::width_v<L>;
@@ -303,15 +306,20 @@ void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const Contact
     const L vn = dot_n(J, u, nv);
     const L e = lane::select(active, s.separation[c], zero);
     // an impact faster than the bounce threshold, reached within the step,
-    // leaves at the restitution share of its approach speed
-    const auto bounce = active && (s.restitution[c] > zero) && (vn < L(-p.bounce_threshold)) &&
+    // leaves at the restitution share of its approach speed: the speed it
+    // came with, not the free velocity, which holds the step's gravity too
+    // (with it a ball of restitution 1 rose by g h^2 more at every bounce)
+    const L approach = dot_n(J, u_start, nv);
+    const auto bounce = active && (s.restitution[c] > zero) && (approach < L(-p.bounce_threshold)) &&
                         (lane::fmadd(L(h), vn, e) < zero);
-    const L floor = lane::select(bounce, -s.restitution[c] * vn, L(-inf));
+    const L floor = lane::select(bounce, -s.restitution[c] * approach, L(-inf));
     rows.v_free[r] = vn;
     rows.error[r] = e;
     rows.rate[r] = rate;
     rows.floor[r] = floor;
-    rows.ceiling[r] = L(p.max_depenetration_speed);
+    // rigid rows push out at most this fast; a compliant row's spring law
+    // sets its own force, which a cap on its target would clip
+    rows.ceiling[r] = L(p.stiffness > 0 ? inf : p.max_depenetration_speed);
     rows.target[r] = rows.target_hi[r] = lane::max(lane::min(positional_target(e, inv_h, rate), rows.ceiling[r]), floor);
     rows.lo[r] = zero;
     rows.hi[r] = lane::select(active, L(inf), zero);
