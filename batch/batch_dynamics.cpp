@@ -20,9 +20,11 @@ void BatchDynamics<L>::for_each_block(int blocks, F&& f) const {
 }
 
 template <class L>
-void BatchDynamics<L>::check(const BatchArray<Scalar>& array, int copies, int size, const char* what) const {
+void BatchDynamics<L>::check(const BatchArray<Scalar>& array, int copies, int size, const char* what,
+                             const char* field) const {
   if (array.copies() != copies || array.size() != size || array.width() != kWidth)
-    throw std::invalid_argument(std::string(what) + ": expected an array of " + std::to_string(copies) + " copies x " +
+    throw std::invalid_argument(std::string(what) + (field ? std::string(" state ") + field : std::string()) +
+                                ": expected an array of " + std::to_string(copies) + " copies x " +
                                 std::to_string(size) + " values x " + std::to_string(kWidth) + " lanes, got " +
                                 std::to_string(array.copies()) + " x " + std::to_string(array.size()) + " x " +
                                 std::to_string(array.width()));
@@ -32,12 +34,14 @@ void BatchDynamics<L>::check(const BatchArray<Scalar>& array, int copies, int si
 // bounds: every field is checked, not only the outputs.
 template <class L>
 void BatchDynamics<L>::check(const BatchState<Scalar>& s, const char* what) const {
-  const int copies = s.copies();
-  check(s.q, copies, km_.nq, (std::string(what) + " state q").c_str());
-  for (const BatchArray<Scalar>* a : {&s.v, &s.tau, &s.qacc}) check(*a, copies, km_.nv, (std::string(what) + " state").c_str());
-  check(s.wrench, copies, 6 * km_.nbody, (std::string(what) + " state wrench").c_str());
-  check(s.inertia, copies, BatchState<Scalar>::kInertiaParams * km_.nbody, (std::string(what) + " state inertia").c_str());
-  check(s.gravity, copies, 3, (std::string(what) + " state gravity").c_str());
+  const int copies = s.copies(), nv = km_.nv, nbody = km_.nbody;
+  check(s.q, copies, km_.nq, what, "q");
+  check(s.v, copies, nv, what, "v");
+  check(s.tau, copies, nv, what, "tau");
+  check(s.qacc, copies, nv, what, "qacc");
+  check(s.wrench, copies, 6 * nbody, what, "wrench");
+  check(s.inertia, copies, BatchState<Scalar>::kInertiaParams * nbody, what, "inertia");
+  check(s.gravity, copies, 3, what, "gravity");
 }
 
 template <class L>

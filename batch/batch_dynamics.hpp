@@ -85,7 +85,9 @@ class BatchDynamics {
   // Runs f(block, workspace) for every block, in parallel.
   template <class F>
   void for_each_block(int blocks, F&& f) const;
-  void check(const BatchArray<Scalar>& array, int copies, int size, const char* what) const;
+  // field: the BatchState field the array is (its name joins the message), or nullptr for an output
+  void check(const BatchArray<Scalar>& array, int copies, int size, const char* what,
+             const char* field = nullptr) const;
   void check(const BatchState<Scalar>& s, const char* what) const;
 
   const Model* model_;

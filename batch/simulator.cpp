@@ -113,12 +113,6 @@ void clear_warm_start(StepBatch<T>& b, int copy) {
   b.momentum_remainder.fill(copy, 0);
 }
 
-// Symmetric positive semidefinite, round-off aside: asymmetry and the
-// smallest eigenvalue within 1e-12 of the largest diagonal entry (or of 1).
-// The smallest eigenvalue is >= -tolerance exactly when B = I + tolerance 1
-// has no negative principal minor (Sylvester's criterion for semidefinite
-// matrices: all seven minors, not only the three leading ones). Their
-// round-off, about 1e-16 of the entries' scale, is far below the tolerance.
 // Finite in the arithmetic the copies run in: a float simulator would store
 // a double beyond float's range (3.4e38) as inf.
 bool finite_in(Precision p, double x) {
@@ -147,6 +141,12 @@ std::string not_enumerated(const char* field, E value) {
 // What "finite" means in messages: float's range too.
 std::string finite_word(Precision p) { return p == Precision::Float ? "finite (in float, within 3.4e38)" : "finite"; }
 
+// Symmetric positive semidefinite, round-off aside: asymmetry and the
+// smallest eigenvalue within 1e-12 of the largest diagonal entry (or of 1).
+// The smallest eigenvalue is >= -tolerance exactly when B = I + tolerance 1
+// has no negative principal minor (Sylvester's criterion for semidefinite
+// matrices: all seven minors, not only the three leading ones). Their
+// round-off, about 1e-16 of the entries' scale, is far below the tolerance.
 bool symmetric_positive_semidefinite(const Eigen::Matrix3d& inertia) {
   const double tolerance = 1e-12 * std::max(1.0, inertia.diagonal().cwiseAbs().maxCoeff());
   if ((inertia - inertia.transpose()).cwiseAbs().maxCoeff() > tolerance) return false;
@@ -232,7 +232,7 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
 }
 
 // Whether the scene needs a stage, and what was found, into a decision.
-StageDecision decide(Stage stage, StageMode mode, bool needed, const std::string& found) {
+StageDecision decide_found(Stage stage, StageMode mode, bool needed, const std::string& found) {
   StageDecision d{stage, false, ""};
   switch (mode) {
     case StageMode::Auto:
@@ -256,7 +256,7 @@ StageDecision decide(Stage stage, StageMode mode, bool needed, const std::string
 StageDecision decide(Stage stage, StageMode mode, int count, const std::string& what, const std::string& also = "") {
   const std::string found = (count > 0 ? std::to_string(count) + " " + what : "no " + what) +
                             (also.empty() ? "" : ", and " + also);
-  return decide(stage, mode, count > 0 || !also.empty(), found);
+  return decide_found(stage, mode, count > 0 || !also.empty(), found);
 }
 
 }  // namespace
@@ -336,8 +336,8 @@ void Simulator::make_plan() const {
       decide(Stage::Springs, mode(Stage::Springs), springs, "DOFs with springs"),
       decide(Stage::SoftLimits, mode(Stage::SoftLimits), soft, "DOFs with spring-damper limits"),
       decide(Stage::StribeckFriction, mode(Stage::StribeckFriction), stribeck, "DOFs with Stribeck friction"),
-      decide(Stage::ExternalWrenches, mode(Stage::ExternalWrenches), wrenches_used_,
-             wrenches_used_ ? "set_link_wrench called" : "no calls of set_link_wrench"),
+      decide_found(Stage::ExternalWrenches, mode(Stage::ExternalWrenches), wrenches_used_,
+                   wrenches_used_ ? "set_link_wrench called" : "no calls of set_link_wrench"),
       decide(Stage::PerCopyInertia, mode(Stage::PerCopyInertia), copies_with_any(own_inertia_bodies_),
              "copies with their own inertial parameters"),
       decide(Stage::PerCopyJointParameters, mode(Stage::PerCopyJointParameters), copies_with_any(own_joint_parameters_),

@@ -308,7 +308,8 @@ void build_contact_rows(const ContactParams<lane::scalar_t<L>>& p, const Contact
     // an impact faster than the bounce threshold, reached within the step,
     // leaves at the restitution share of its approach speed: the speed it
     // came with, not the free velocity, which holds the step's gravity too
-    // (with it a ball of restitution 1 rose by g h^2 more at every bounce)
+    // (with it a ball of restitution 1 left each bounce g h faster, and
+    // rose v h higher)
     const L approach = dot_n(J, u_start, nv);
     const auto bounce = active && (s.restitution[c] > zero) && (approach < L(-p.bounce_threshold)) &&
                         (lane::fmadd(L(h), vn, e) < zero);
