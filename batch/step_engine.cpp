@@ -358,7 +358,7 @@ template <class L>
 void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
   StepBatch<T>& B = batch_;
-  const int nq = km_.nq, nv = km_.nv;
+  const int nv = km_.nv;
   const T* q = B.state.q.block(block);
   const T* v = B.state.v.block(block);
   const T* tau_ff = B.state.tau.block(block);

@@ -81,14 +81,15 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
       break;
     }
     case JointRowKind::VelocityLimit: {
-      // Past a hard limit, that row asks for the speed back erp e / dt
-      // (positional_target), which may exceed v_max: the band widens to it
-      // on that side, as in RaiSim a velocity limit does not act against a
-      // position limit that acts. Only so far, not off: a joint resting on
-      // its limit a rounding error past it keeps its velocity limit.
-      const L qk = lane::load<L>(q + spec.q_index * W), rate(erp / dt);
-      const L up = lane::select(qk < L(spec.range_lower), rate * (L(spec.range_lower) - qk), zero);
-      const L down = lane::select(qk > L(spec.range_upper), rate * (qk - L(spec.range_upper)), zero);
+      // Past a hard limit, that row asks for the speed back its
+      // positional_target gives (erp e / dt), which may exceed v_max: the
+      // band widens to it on that side, as in RaiSim a velocity limit does
+      // not act against a position limit that acts. Only so far, not off: a
+      // joint resting on its limit a rounding error past it keeps its
+      // velocity limit. Within the range the target is <= 0: no widening.
+      const L qk = lane::load<L>(q + spec.q_index * W), inv_dt(T(1) / dt), rate(erp / dt);
+      const L up = lane::max(zero, positional_target(qk - L(spec.range_lower), inv_dt, rate));
+      const L down = lane::max(zero, positional_target(L(spec.range_upper) - qk, inv_dt, rate));
       row.target = -lane::max(L(spec.a), down);
       row.target_hi = lane::max(L(spec.a), up);
       break;
