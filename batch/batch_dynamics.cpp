@@ -256,6 +256,17 @@ void BatchDynamics<L>::incoming_joint_forces(const BatchState<Scalar>& s, BatchA
 }
 
 template <class L>
+void BatchDynamics<L>::transmitted_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "transmitted_joint_forces");
+  check(out, s.copies(), 6 * km_.nbody, "transmitted_joint_forces");
+  for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
+    joint_transforms<L>(km_, s.q.block(b), ws);
+    world_transforms<L>(km_, ws);
+    lockstep::transmitted_joint_forces<L>(km_, block_inputs(s, b), ws, out.block(b));
+  });
+}
+
+template <class L>
 void BatchDynamics<L>::integrate(const BatchArray<Scalar>& q, const BatchArray<Scalar>& v, Scalar dt,
                                  BatchArray<Scalar>& q_out) const {
   check(q, q.copies(), km_.nq, "integrate q");

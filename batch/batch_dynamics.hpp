@@ -77,6 +77,9 @@ class BatchDynamics {
   // (nbody x 6) force and torque each joint transmits to its child body under
   // s.tau and s.wrench, world axes, torque about the joint origin.
   void incoming_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
+  // (nbody x 6) the same during the motion s.qacc (RNEA's per-body forces),
+  // with s.wrench and s.gravity.
+  void transmitted_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
   // (nq) q_out = q (+) v dt on the configuration manifold; (nv) its inverse.
   void integrate(const BatchArray<Scalar>& q, const BatchArray<Scalar>& v, Scalar dt, BatchArray<Scalar>& q_out) const;
   void difference(const BatchArray<Scalar>& q0, const BatchArray<Scalar>& q1, BatchArray<Scalar>& v_out) const;

@@ -196,6 +196,13 @@ Eigen::MatrixXd CopyDynamics::incoming_joint_forces(const Eigen::VectorXd& q, co
       evaluate({&q, &v, &tau, nullptr, link_wrench}, LOCKSTEP_BATCH_METHOD(incoming_joint_forces), 6 * model_->nbody);
   return row_major(flat, model_->nbody, 6);
 }
+Eigen::MatrixXd CopyDynamics::transmitted_joint_forces(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                                                       const Eigen::VectorXd& qacc,
+                                                       const Eigen::MatrixXd* link_wrench) const {
+  const Eigen::VectorXd flat = evaluate({&q, &v, nullptr, &qacc, link_wrench},
+                                        LOCKSTEP_BATCH_METHOD(transmitted_joint_forces), 6 * model_->nbody);
+  return row_major(flat, model_->nbody, 6);
+}
 Eigen::VectorXd CopyDynamics::integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const {
   return impl_->visit([&](auto& c) { return c.integrate(q, v, dt); });
 }

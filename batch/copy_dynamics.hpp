@@ -59,6 +59,10 @@ class CopyDynamics {
   // world axes, torque about the joint origin.
   Eigen::MatrixXd incoming_joint_forces(const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& tau,
                                         const Eigen::MatrixXd* link_wrench = nullptr) const;
+  // The same during the motion qacc (RNEA's per-body forces).
+  Eigen::MatrixXd transmitted_joint_forces(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                                           const Eigen::VectorXd& qacc,
+                                           const Eigen::MatrixXd* link_wrench = nullptr) const;
   // q (+) v dt on the configuration manifold, and its inverse.
   Eigen::VectorXd integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const;
   Eigen::VectorXd difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1) const;

@@ -32,7 +32,8 @@ std::size_t StepBatch<T>::bytes_per_copy() const {
                                  &initial_q, &initial_v, &fault, &applied_drive, &applied_passive, &applied_friction,
                                  &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
-                                 &contact_dropped, &contact_overflow_steps, &momentum_remainder})
+                                 &contact_dropped, &contact_overflow_steps, &momentum_remainder, &motion_q, &motion_v,
+                                 &motion_acceleration, &motion_recorded})
     values += static_cast<std::size_t>(a->size());
   return values * sizeof(T);
 }
@@ -105,12 +106,13 @@ auto joint_parameter_fields(Batch& b, const JointParameters& scene) {
 }
 
 // Zero joint-row impulses, no contact points: nothing to warm-start from;
-// no momentum to carry.
+// no momentum to carry; no step whose joint forces to report.
 template <class T>
 void clear_warm_start(StepBatch<T>& b, int copy) {
   b.impulse.fill(copy, 0);
   b.contact_id.fill(copy, -1);
   b.momentum_remainder.fill(copy, 0);
+  b.motion_recorded.fill(copy, 0);
 }
 
 // Finite in the arithmetic the copies run in: a float simulator would store
@@ -581,6 +583,13 @@ auto applied_torque_report(Batch& b) {
   return std::array{&b.applied_drive, &b.applied_passive, &b.applied_friction, &b.applied_limits};
 }
 
+// incoming_joint_forces()'s motion of a copy's last step (empty arrays
+// without StepOptions::record_joint_forces).
+template <class Batch>
+auto joint_force_motion(Batch& b) {
+  return std::array{&b.motion_q, &b.motion_v, &b.motion_acceleration, &b.motion_recorded};
+}
+
 template <class Arrays>
 int packed_size(const Arrays& arrays) {
   int size = 0;
@@ -623,6 +632,7 @@ CopySnapshot Simulator::snapshot(int copy) const {
                         pack(copy_parameters(b), copy),
                         pack(contact_report(b), copy),
                         pack(applied_torque_report(b), copy),
+                        pack(joint_force_motion(b), copy),
                         scene_key_};
   });
 }
@@ -641,12 +651,15 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
             "restore: the snapshot's contact report does not match this simulator's scene");
     require(s.applied_torque.size() == packed_size(applied_torque_report(b)),
             "restore: the snapshot's applied torques do not match this simulator's record_applied_torque");
+    require(s.joint_force_motion.size() == packed_size(joint_force_motion(b)),
+            "restore: the snapshot's joint-force motion does not match this simulator's record_joint_forces");
     require(s.scene_key == 0 || s.scene_key == scene_key_,
             "restore: the snapshot was taken from another scene (its model's joints or links, its joint rows "
             "or its contact pairs differ from this simulator's)");
     unpack(s.parameters, copy, copy_parameters(b));
     unpack(s.contact_report, copy, contact_report(b));
     unpack(s.applied_torque, copy, applied_torque_report(b));
+    unpack(s.joint_force_motion, copy, joint_force_motion(b));
     b.state.q.set(copy, s.q);
     b.state.v.set(copy, s.v);
     b.impulse.set(copy, s.joint_impulse);
@@ -880,6 +893,51 @@ AppliedTorque Simulator::applied_torque(int copy) const {
     return AppliedTorque{b.applied_drive.get(copy), b.applied_passive.get(copy), b.applied_friction.get(copy),
                          b.applied_limits.get(copy)};
   });
+}
+
+Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::incoming_joint_forces(int copy) const {
+  check_copy(copy, "incoming_joint_forces");
+  if (!options_.record_joint_forces)
+    throw std::logic_error("Simulator::incoming_joint_forces needs StepOptions::record_joint_forces");
+  const int nbody = model_->nbody;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, nbody);
+  // The run's motion, and the copy's gravity, inertias and wrenches as the
+  // step takes them (batch/step_engine.hpp: the model's inertias and no
+  // wrenches where their stages are skipped), in double.
+  const auto runs = [&](Stage stage) { return plan()[static_cast<int>(stage)].runs; };
+  const BatchDynamics<double> dynamics(*model_);
+  BatchState<double> one = dynamics.make_state(1);
+  const bool recorded = visit([&](auto& b) {
+    one.q.set(0, b.motion_q.get(copy));
+    one.v.set(0, b.motion_v.get(copy));
+    one.qacc.set(0, b.motion_acceleration.get(copy));
+    one.gravity.set(0, b.state.gravity.get(copy));
+    if (runs(Stage::PerCopyInertia)) one.inertia.set(0, b.state.inertia.get(copy));
+    if (runs(Stage::ExternalWrenches)) one.wrench.set(0, b.state.wrench.get(copy));
+    return b.motion_recorded.at(copy, 0) != 0;
+  });
+  if (!recorded) return out;
+  // The contact forces join the link wrenches, their torque taken about
+  // each body's COM at the start of the step (where the contact points are).
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> contact = body_contact_wrenches(copy);
+  BatchArray<double> poses = dynamics.make_array(1, 12 * nbody);
+  dynamics.body_poses(one, poses);
+  const Eigen::VectorXd pose = poses.get(0), inertia = one.inertia.get(0);
+  Eigen::VectorXd wrench = one.wrench.get(0);
+  constexpr int kParams = BatchState<double>::kInertiaParams;
+  for (int b = 0; b < nbody; ++b) {
+    const Eigen::Matrix3d R = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(pose.data() + 12 * b);
+    const Eigen::Vector3d com = pose.segment<3>(12 * b + 9) + R * inertia.segment<3>(kParams * b + 1);
+    const Eigen::Vector3d force = contact.col(b).head<3>();
+    wrench.segment<3>(6 * b) += force;
+    wrench.segment<3>(6 * b + 3) += contact.col(b).tail<3>() - com.cross(force);
+  }
+  one.wrench.set(0, wrench);
+  BatchArray<double> forces = dynamics.make_array(1, 6 * nbody);
+  dynamics.transmitted_joint_forces(one, forces);
+  const Eigen::VectorXd flat = forces.get(0);
+  out = Eigen::Map<const Eigen::Matrix<double, 6, Eigen::Dynamic>>(flat.data(), 6, nbody);
+  return out;
 }
 
 void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction) {

@@ -75,6 +75,14 @@ struct StepBatch {
   // limit impulses / dt; with substeps, the mean over the step's pipeline
   // runs. Empty otherwise.
   BatchArray<T> applied_drive, applied_passive, applied_friction, applied_limits;
+  // With StepOptions::record_joint_forces, the motion of the last step's
+  // last pipeline run, from which Simulator::incoming_joint_forces finds
+  // the joints' forces: the run's start state (nq, nv), its acceleration
+  // (nv: (v1 - v0) / h, a Free joint's linear part the spatial acceleration
+  // RNEA takes, the frame's turn rate w0 x v0 taken out), and 1 where a run
+  // was recorded since the copy's last reset or set_state, else 0. Empty
+  // otherwise.
+  BatchArray<T> motion_q, motion_v, motion_acceleration, motion_recorded;
   // Contacts (empty without them): the ground plane n . x = d as (n, d) and
   // its friction; per contact slot the point's candidate number (-1: none,
   // and the slot's other entries are then unspecified; a copy's contacts
@@ -132,6 +140,9 @@ struct CopySnapshot {
   // applied_torque()'s four sources of the last step (empty without
   // StepOptions::record_applied_torque)
   Eigen::VectorXd applied_torque;
+  // StepBatch's motion_q, motion_v, motion_acceleration and motion_recorded
+  // (empty without StepOptions::record_joint_forces)
+  Eigen::VectorXd joint_force_motion;
   // Simulator::scene_key() of the simulator it came from: restore refuses a
   // snapshot of another scene whose arrays happen to have the same sizes.
   // 0 (a snapshot put together by hand) is not checked.
@@ -246,6 +257,22 @@ class Simulator {
   void reset(int copy);
 
   AppliedTorque applied_torque(int copy) const;  // needs record_applied_torque
+  // The force and torque each joint transmitted from the parent to its child
+  // body in the copy's last step (RaiSim's force and torque at the joint,
+  // PhysX's link incoming joint force; needs
+  // StepOptions::record_joint_forces): one column per body, [force; torque
+  // about the joint origin (the child body's origin)], world axes at the
+  // start of the step. It is RNEA on the step's motion, with gravity, the
+  // link wrenches and the contact forces: constraint force and actuation
+  // together. Along a joint's own axes it is what applied_torque() sums, less
+  // the armature's share (armature x acceleration). A Free joint transmits
+  // only its feedforward force, and what the implicit gyroscopic force
+  // changed in the step (O(h |w| |a|) per unit inertia). With substeps: the
+  // last pipeline run. Zero until a step follows a reset or set_state.
+  // Read before changing the copy's wrenches, gravity or inertias: the
+  // forces are found when read. docs/conventions.md, "Joint forces after a
+  // step".
+  Eigen::Matrix<double, 6, Eigen::Dynamic> incoming_joint_forces(int copy) const;
 
   // Contacts. The candidate shape pairs after filtering (and notes on
   // shapes left out); the ground of one copy (plane through (0, 0, height)

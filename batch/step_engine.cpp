@@ -131,6 +131,11 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   // without recording, empty per copy (a snapshot packs none)
   for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
     *a = BatchArray<T>(copies, options.record_applied_torque ? nv : 0, kWidth);
+  const bool motion = options.record_joint_forces;
+  batch_.motion_q = BatchArray<T>(copies, motion ? model.nq : 0, kWidth);
+  for (BatchArray<T>* a : {&batch_.motion_v, &batch_.motion_acceleration})
+    *a = BatchArray<T>(copies, motion ? nv : 0, kWidth);
+  batch_.motion_recorded = BatchArray<T>(copies, motion ? 1 : 0, kWidth);
   const JointParameters scene = scene_joint_parameters(model, dofs);
   // every copy's per-DOF parameters, and the one block read while no copy has its own
   const std::tuple<BatchArray<T>*, BatchArray<T>*, const Eigen::VectorXd*> joint_parameters[] = {
@@ -440,10 +445,13 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
       store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
                         contact_arrays(block), first_run);
     s.clock.lap(&StepProfile::constraint_solve);
+    if (options_.record_joint_forces) record_motion(block, h, s);
     T* velocity = fields(s.qacc);  // free again: the position velocity
     const T step = position_velocity(s, h, velocity);
     integrate<L>(km_, q, velocity, step, q_next);
     turn_free_linear<L>(km_, velocity, step, fields(s.u1), Turn::ToEnd);
+  } else if (options_.record_joint_forces) {
+    record_motion(block, h, s);
   }
   if (options_.record_applied_torque) record_applied(block, h, first_run, s);
   if (!floating_roots_.empty()) keep_linear_momentum(block, q_next, s);
@@ -475,6 +483,7 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
     clear(B.impulse, T(0));
     clear(B.contact_id, T(-1));
     clear(B.momentum_remainder, T(0));
+    clear(B.motion_recorded, T(0));
   } else {
     for (int i = 0; i < nq; ++i) lane::store(lane::load<L>(q_next + i * W), q + i * W);
     for (int k = 0; k < nv; ++k) lane::store(s.u1[k], v + k * W);
@@ -1043,6 +1052,31 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
     T* out = (spec.kind == JointRowKind::Friction ? friction : limits) + spec.dof * W;
     add(out, s.rows.sigma[r] * lane::load<L>(impulse + r * W) * inv_h, false);
   }
+}
+
+// StepOptions::record_joint_forces: the run's start state and acceleration
+// (u1 - u0) / h, before q and v are overwritten. Except with RK4, which
+// integrates in body coordinates, a Free joint's linear u1 is still in the
+// frame at the start of the step: begin_block added h times the turn rate
+// w0 x v0 (with the implicit gyroscopic force, linearised about the free
+// acceleration in s.qacc) to the spatial acceleration that RNEA takes, and
+// that is taken out again here, as it was put in.
+template <class L>
+void StepEngine<L>::record_motion(int block, T h, Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const T* q = batch_.state.q.block(block);
+  T* q_out = batch_.motion_q.block(block);
+  T* v_out = batch_.motion_v.block(block);
+  T* acceleration = batch_.motion_acceleration.block(block);
+  for (int i = 0; i < km_.nq; ++i) lane::store(lane::load<L>(q + i * W), q_out + i * W);
+  const L inv_h(T(1) / h);
+  for (int k = 0; k < km_.nv; ++k) {
+    lane::store(s.u0[k], v_out + k * W);
+    lane::store((s.u1[k] - s.u0[k]) * inv_h, acceleration + k * W);
+  }
+  if (options_.integrator != Integrator::RK4)
+    add_frame_turn_rate<L>(km_, v_out, fields(s.qacc), gyroscopic_weight(h), T(-1), acceleration);
+  lane::store(L(T(1)), batch_.motion_recorded.block(block));
 }
 
 template class StepEngine<float>;

@@ -191,6 +191,7 @@ class StepEngine final : public Simulator::Engine {
   int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
   void make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings);
   void record_applied(int block, T h, bool first_run, Scratch& s);
+  void record_motion(int block, T h, Scratch& s);
   // StepOptions::conserve_linear_momentum (batch/step_momentum.cpp): the
   // target from the start of the step, before the Free joints' velocities
   // turn to the end frame; then the bases' velocities corrected at q1.

@@ -45,6 +45,9 @@
                                          const Vec3<L>&, lane::scalar_t<L>*);                                         \
   EXTERN template void com_jacobian<L>(const KernelModel<lane::scalar_t<L>>&, const lane::scalar_t<L>*,             \
                                        const Workspace<L>&, lane::scalar_t<L>*);                                      \
+  EXTERN template void transmitted_joint_forces<L>(const KernelModel<lane::scalar_t<L>>&,                           \
+                                                   const BlockInputs<lane::scalar_t<L>>&, Workspace<L>&,             \
+                                                   lane::scalar_t<L>*);                                               \
   EXTERN template void incoming_joint_forces<L>(const KernelModel<lane::scalar_t<L>>&,                              \
                                                 const BlockInputs<lane::scalar_t<L>>&, Workspace<L>&,                \
                                                 lane::scalar_t<L>*, lane::scalar_t<L>*);                              \

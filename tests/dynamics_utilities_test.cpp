@@ -166,6 +166,24 @@ TEST_P(Utilities, IncomingJointForcesProjectToJointForces) {
   }
 }
 
+// For the motion that tau produces, the forces transmitted during a motion
+// are the incoming joint forces under tau; with wrenches too.
+TEST_P(Utilities, TransmittedJointForcesOfTheForwardMotionAreTheIncomingOnes) {
+  const Eigen::VectorXd q = test::random_configuration(model_, rng_);
+  const Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0);
+  const Eigen::VectorXd tau = test::random_vector(model_.nv, rng_, 5.0);
+  Eigen::MatrixXd wrench(model_.nbody, 6);
+  for (int b = 0; b < model_.nbody; ++b) wrench.row(b) = test::random_vector(6, rng_, 3.0).transpose();
+  const Eigen::VectorXd qacc = dyn_->forward_dynamics(q, v, tau, &wrench);
+  const Eigen::MatrixXd incoming = dyn_->incoming_joint_forces(q, v, tau, &wrench);
+  const Eigen::MatrixXd transmitted = dyn_->transmitted_joint_forces(q, v, qacc, &wrench);
+  // ABA then RNEA in double: round-off of cond(M) eps on the largest force
+  EXPECT_LE((transmitted - incoming).cwiseAbs().maxCoeff(), 1e-8 * (1.0 + incoming.cwiseAbs().maxCoeff()));
+  // and it is not the motionless answer
+  const Eigen::MatrixXd still = dyn_->transmitted_joint_forces(q, v, Eigen::VectorXd::Zero(model_.nv), &wrench);
+  EXPECT_GT((still - incoming).cwiseAbs().maxCoeff(), 1e-3);
+}
+
 INSTANTIATE_TEST_SUITE_P(SharedModels, Utilities, ::testing::ValuesIn(test::all_model_cases()),
                          [](const auto& info) { return test::case_name(info.param); });
 
@@ -283,6 +301,8 @@ TEST(InertiaOverride, EveryKernelHonoursPerCopyValues) {
       {1, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.potential_energy(st, o); }},
       {3, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.linear_momentum(st, o); }},
       {6 * base.nbody, [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.incoming_joint_forces(st, o); }},
+      {6 * base.nbody,
+       [](const D& d, const BatchState<double>& st, BatchArray<double>& o) { d.transmitted_joint_forces(st, o); }},
   };
   for (std::size_t k = 0; k < kernels.size(); ++k) {
     BatchArray<double> a = over_base.make_array(3, kernels[k].first), b = over_heavier.make_array(3, kernels[k].first);

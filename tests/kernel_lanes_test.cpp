@@ -74,6 +74,7 @@ std::vector<Operation<L>> operations(const Model& m) {
       {"potential_energy", 1, [](const D& d, const S& s, A& o) { d.potential_energy(s, o); }},
       {"linear_momentum", 3, [](const D& d, const S& s, A& o) { d.linear_momentum(s, o); }},
       {"incoming_joint_forces", 6 * m.nbody, [](const D& d, const S& s, A& o) { d.incoming_joint_forces(s, o); }},
+      {"transmitted_joint_forces", 6 * m.nbody, [](const D& d, const S& s, A& o) { d.transmitted_joint_forces(s, o); }},
       {"integrate", m.nq, [](const D& d, const S& s, A& o) { d.integrate(s.q, s.v, T(0.01), o); }},
   };
 }

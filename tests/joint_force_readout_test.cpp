@@ -1,0 +1,319 @@
+// Simulator::incoming_joint_forces: the force and torque each joint
+// transmitted in the last step (StepOptions::record_joint_forces), checked
+// against the step's own applied torques, an analytic pendulum and a
+// standing quadruped's statics; and how it behaves across resets,
+// snapshots, lanes and substeps.
+#include "tests/contact_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <iostream>
+
+namespace lockstep::test {
+namespace {
+
+using Forces = Eigen::Matrix<double, 6, Eigen::Dynamic>;
+
+// Each DOF's share of the joint forces f (one column per body, world axes)
+// along its motion axes, with the bodies' poses at the start of the step: a
+// revolute's torque and a prismatic's force about/along its body z, a
+// Spherical joint's torque and a Free joint's force and torque in body axes.
+Eigen::VectorXd along_joint_axes(const Model& model, const std::vector<Eigen::Isometry3d>& poses, const Forces& f) {
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(model.nv);
+  for (int b = 0; b < model.nbody; ++b) {
+    const Eigen::Matrix3d Rt = poses[b].linear().transpose();
+    const Eigen::Vector3d force = Rt * f.col(b).head<3>(), torque = Rt * f.col(b).tail<3>();
+    const int d = model.body_dof_offset[b];
+    switch (model.body_joint[b]) {
+      case JointType::Revolute: out[d] = torque.z(); break;
+      case JointType::Prismatic: out[d] = force.z(); break;
+      case JointType::Spherical: out.segment<3>(d) = torque; break;
+      case JointType::Free: out.segment<6>(d) << force, torque; break;
+      default: break;
+    }
+  }
+  return out;
+}
+
+// The recorded acceleration of the copy's last step times its armature, in
+// double: the rotor's share of the joint torque.
+Eigen::VectorXd rotor_torque(const Simulator& sim, int copy) {
+  auto of = [&](const auto& b) { return b.armature.get(copy).cwiseProduct(b.motion_acceleration.get(copy)); };
+  return sim.options().precision == Precision::Float ? of(sim.batch<float>()) : of(sim.batch<double>());
+}
+
+struct Residual {
+  double worst = 0;    // largest |along the axes + armature a - applied| over the DOFs that are not Free
+  double largest = 0;  // largest |applied| seen
+};
+
+// Steps the copy `steps` times and compares, after each, the joint forces
+// along the joints' axes (plus the rotor's share, armature x acceleration)
+// with the applied torque the step reports (drive, passive, friction and
+// limits): RaiSim's "joint torque = axis . joint torque" with the
+// constraint rows included.
+Residual step_and_compare(Simulator& sim, int steps) {
+  const Model& model = sim.model();
+  const CopyDynamics poses_of(model);
+  Residual r;
+  for (int i = 0; i < steps; ++i) {
+    const Eigen::VectorXd q0 = sim.q(0);
+    sim.step();
+    const AppliedTorque t = sim.applied_torque(0);
+    const Eigen::VectorXd applied = t.drive + t.passive + t.friction + t.limits;
+    const Eigen::VectorXd along = along_joint_axes(model, poses_of.body_poses(q0), sim.incoming_joint_forces(0));
+    const Eigen::VectorXd rotor = rotor_torque(sim, 0);
+    for (int k = 0; k < model.nv; ++k) {
+      if (model.body_joint[model.dof_body[k]] == JointType::Free) continue;
+      r.worst = std::max(r.worst, std::abs(along[k] + rotor[k] - applied[k]));
+      r.largest = std::max(r.largest, std::abs(applied[k]));
+    }
+  }
+  return r;
+}
+
+// Tolerances of the identity, relative to the largest applied torque. The
+// readout runs RNEA in double on the step's recorded motion. In double the
+// two sides differ by round-off (ABA, the solver and RNEA): measured
+// 5e-15 of the largest (anymal_b, ur5). In float the recorded acceleration
+// (v1 - v0) / h carries v's rounding, ulp(|v|) / h = 6e-5 rad/s^2 per DOF
+// at 1 rad/s and h = 2 ms, which the subtree's inertia turns into force,
+// and the applied torques are float sums: measured 7e-7 (PGS) and 1.7e-6
+// (TGS) of the largest on the landing quadruped, 1.5e-7 on ur5.
+double identity_tolerance(Precision p) { return p == Precision::Double ? 1e-12 : 1e-5; }
+
+// anymal_b dropped 5 cm onto the ground under the stance drives: the
+// landing's impacts, then standing; every row type a quadruped meets
+// (contacts), with either solver in either precision.
+TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueOnALandingQuadruped) {
+  const Model model = load_shared_model("anymal_b", true);
+  const step_scene::Scene scene = step_scene::make_scene(model, true);
+  for (SolverType solver : {SolverType::PGS, SolverType::TGS})
+    for (Precision precision : {Precision::Float, Precision::Double}) {
+      StepOptions o;
+      o.precision = precision;
+      o.solver = solver;
+      o.contacts.ground = true;
+      o.record_applied_torque = true;
+      o.record_joint_forces = true;
+      Simulator sim(model, 1, o, scene.dofs);
+      Eigen::VectorXd q = scene.q0;
+      q[2] += 0.05;
+      sim.set_state(0, q, Eigen::VectorXd::Zero(model.nv));
+      sim.set_drive_target(0, scene.q_target, Eigen::VectorXd::Zero(model.nv));
+      const Residual r = step_and_compare(sim, 300);
+      const std::string what = std::string(solver_name(solver)) + ", " + precision_name(precision);
+      std::cout << "[joint forces] anymal_b landing, " << what << ": worst " << r.worst << " N m of " << r.largest
+                << "\n";
+      EXPECT_GT(r.largest, 10.0) << what;  // the legs carry the robot
+      EXPECT_LE(r.worst, identity_tolerance(precision) * r.largest) << what;
+    }
+}
+
+// ur5 with drives past its hard limits, velocity limits, Coulomb friction,
+// damping and armature: the joint rows' impulses are in the joint forces.
+TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueWithEveryJointRow) {
+  const Model model = load_shared_model("ur5", false);
+  std::vector<DofSettings> dofs = limited_dofs(model, 0.4, 1.5);
+  Eigen::VectorXd armature(model.nv);
+  for (int k = 0; k < model.nv; ++k) {
+    dofs[k].drive_stiffness = 400;
+    dofs[k].drive_damping = 20;
+    armature[k] = 0.05 * (k + 1);
+  }
+  for (Precision precision : {Precision::Float, Precision::Double}) {
+    StepOptions o;
+    o.precision = precision;
+    o.record_applied_torque = true;
+    o.record_joint_forces = true;
+    Simulator sim(model, 1, o, dofs);
+    sim.set_armature(0, armature);
+    Eigen::VectorXd target = Eigen::VectorXd::Constant(model.nq, 1.0);  // beyond the limits at 0.4
+    target[1] = -1.0;
+    sim.set_drive_target(0, target, Eigen::VectorXd::Zero(model.nv));
+    const Residual r = step_and_compare(sim, 500);
+    const AppliedTorque last = sim.applied_torque(0);
+    EXPECT_GT(last.limits.cwiseAbs().maxCoeff(), 1.0) << "the limits hold the drives";
+    std::cout << "[joint forces] ur5 on its limits, " << precision_name(precision) << ": worst " << r.worst
+              << " N m of " << r.largest << "\n";
+    EXPECT_LE(r.worst, identity_tolerance(precision) * r.largest) << precision_name(precision);
+  }
+}
+
+// Spherical joints (test::spherical_tree) under drives and damping.
+TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueOnSphericalJoints) {
+  const Model model = spherical_tree(false);
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (DofSettings& d : dofs) d.drive_stiffness = 30, d.drive_damping = 2, d.damping = 0.1;
+  StepOptions o;
+  o.precision = Precision::Double;
+  o.record_applied_torque = true;
+  o.record_joint_forces = true;
+  Simulator sim(model, 1, o, dofs);
+  std::mt19937 rng(5);
+  sim.set_drive_target(0, random_configuration(model, rng), Eigen::VectorXd::Zero(model.nv));
+  const Residual r = step_and_compare(sim, 200);
+  EXPECT_GT(r.largest, 0.1);
+  EXPECT_LE(r.worst, identity_tolerance(Precision::Double) * r.largest);
+}
+
+// A swinging rod on a revolute joint, one step: the pivot's force is
+// m (a_com - g), a_com = alpha x r - w^2 r, alpha = (r x m g) . y / I_pivot
+// from the rod's statics alone; no torque along the free axis.
+TEST(JointForces, ThePivotOfASwingingRodCarriesItsCentripetalLoad) {
+  const double m = 2.0, l = 0.5, theta = 0.7, w = 3.0;
+  const Model model = rod_chain({m}, l);
+  for (Precision precision : {Precision::Float, Precision::Double}) {
+    StepOptions o;
+    o.precision = precision;
+    o.dt = 0.01;
+    o.record_joint_forces = true;
+    Simulator sim(model, 1, o);
+    sim.set_state(0, Eigen::VectorXd::Constant(1, theta), Eigen::VectorXd::Constant(1, w));
+    sim.step();
+    const Eigen::Vector3d y = Eigen::Vector3d::UnitY(), g = model.gravity;
+    const Eigen::Vector3d r = Eigen::AngleAxisd(theta, y) * Eigen::Vector3d(0, 0, -0.5 * l);
+    const double alpha = r.cross(m * g).dot(y) / (m * l * l / 3.0);
+    const Eigen::Vector3d a_com = alpha * y.cross(r) - w * w * r;
+    const Eigen::Vector3d expected = m * (a_com - g);
+    const Forces f = sim.incoming_joint_forces(0);
+    // float: the recorded alpha carries ulp(w) / h = 2.4e-5 rad/s^2 of 8.8
+    const double tolerance = precision == Precision::Double ? 1e-10 : 1e-5;
+    EXPECT_LE((f.col(0).head<3>() - expected).norm(), tolerance * expected.norm()) << precision_name(precision);
+    EXPECT_LE(std::abs(f.col(0).tail<3>().dot(y)), tolerance * expected.norm() * l) << precision_name(precision);
+  }
+}
+
+// A free box spinning about its intermediate axis and pushed along its own
+// x by a feedforward force on its Free joint: the joint transmits exactly
+// that force (the world holds nothing), once the implicit gyroscopic
+// force, which changes the step's equations of the Free body, is off.
+// With it on, the joint also carries what it changed: O(h |w| |a|).
+TEST(JointForces, AFreeJointTransmitsItsFeedforwardForceOnly) {
+  const Model model = single_body(ShapeType::Box, Eigen::Vector3d(0.1, 0.2, 0.3), 1.0);
+  Eigen::VectorXd v(6), tau = Eigen::VectorXd::Zero(6);
+  v << 1.0, 0, 0, 0.05, 5, 0.05;
+  tau[0] = 2.0;
+  for (bool implicit : {false, true}) {
+    StepOptions o;
+    o.precision = Precision::Double;
+    o.dt = 0.005;
+    o.implicit_gyroscopic = implicit;
+    o.record_joint_forces = true;
+    Simulator sim(model, 1, o);
+    sim.set_gravity(0, Eigen::Vector3d::Zero());
+    sim.set_state(0, model.neutral_configuration(), v);
+    sim.set_torque(0, tau);
+    const CopyDynamics poses_of(model);
+    double worst = 0;
+    for (int i = 0; i < 200; ++i) {
+      const Eigen::VectorXd q0 = sim.q(0);
+      sim.step();
+      const Eigen::VectorXd along = along_joint_axes(model, poses_of.body_poses(q0), sim.incoming_joint_forces(0));
+      worst = std::max(worst, (along - tau).norm());
+    }
+    std::cout << "[joint forces] spinning box, implicit gyroscopic " << implicit << ": worst " << worst << "\n";
+    if (implicit) EXPECT_GT(worst, 1e-3);  // 0.06 N m here
+    else EXPECT_LE(worst, 1e-12);
+  }
+}
+
+// anymal_b standing still: its hips hold up the base (their forces on the
+// legs sum to the base's weight), and the floating base's Free joint
+// transmits nothing.
+TEST(JointForces, AStandingQuadrupedsHipsCarryItsBase) {
+  const Model model = load_shared_model("anymal_b", true);
+  const step_scene::Scene scene = step_scene::make_scene(model, true);
+  StepOptions o;
+  o.precision = Precision::Double;
+  o.contacts.ground = true;
+  o.record_joint_forces = true;
+  Simulator sim(model, 1, o, scene.dofs);
+  sim.set_state(0, scene.q0, Eigen::VectorXd::Zero(model.nv));
+  sim.set_drive_target(0, scene.q_target, Eigen::VectorXd::Zero(model.nv));
+  sim.step(1000);
+  ASSERT_LT(sim.v(0).cwiseAbs().maxCoeff(), 1e-3) << "it stands still";
+  const Forces f = sim.incoming_joint_forces(0);
+  Eigen::Vector3d hips = Eigen::Vector3d::Zero();
+  int legs = 0;
+  for (int b = 0; b < model.nbody; ++b)
+    if (model.body_parent[b] == 0) hips += f.col(b).head<3>(), ++legs;
+  ASSERT_EQ(legs, 4);
+  const Eigen::Vector3d weight = model.body_mass[0] * model.gravity;
+  // at rest to |qd| < 1e-3: the base's m a is below 1e-3 of its weight
+  EXPECT_LE((hips - weight).norm(), 1e-3 * weight.norm()) << hips.transpose() << " vs " << weight.transpose();
+  EXPECT_LE(f.col(0).norm(), 1e-3 * weight.norm());
+}
+
+// Before any step, after a reset, a set_state or a reset_on_fault restart
+// there is no step to report: zero. A snapshot carries the report.
+TEST(JointForces, ZeroWithoutAStepAndCarriedBySnapshots) {
+  const Model model = rod_chain({1.0, 0.5}, 0.3);
+  StepOptions o;
+  o.record_joint_forces = true;
+  o.reset_on_fault = true;
+  Simulator sim(model, 2, o);
+  EXPECT_TRUE(sim.incoming_joint_forces(0).isZero(0));
+  sim.step();
+  const Forces after_step = sim.incoming_joint_forces(0);
+  EXPECT_GT(after_step.norm(), 1.0);  // the rods' weight
+  const CopySnapshot snap = sim.snapshot(0);
+  sim.reset(0);
+  EXPECT_TRUE(sim.incoming_joint_forces(0).isZero(0));
+  sim.restore(0, snap);
+  EXPECT_EQ(sim.incoming_joint_forces(0), after_step);
+  sim.set_state(0, sim.q(0), sim.v(0));
+  EXPECT_TRUE(sim.incoming_joint_forces(0).isZero(0));
+  // a faulted copy restarts from its initial state: no step to report
+  sim.step();
+  sim.set_torque(1, Eigen::VectorXd::Constant(model.nv, std::nan("")));
+  sim.step();
+  EXPECT_EQ(sim.fault(1), Fault::NonFiniteTorque);
+  EXPECT_TRUE(sim.incoming_joint_forces(1).isZero(0));
+  EXPECT_GT(sim.incoming_joint_forces(0).norm(), 1.0);
+
+  StepOptions without;
+  Simulator plain(model, 1, without);
+  EXPECT_THROW(plain.incoming_joint_forces(0), std::logic_error);
+  EXPECT_THROW(plain.restore(0, snap), std::invalid_argument);  // its snapshot holds a motion
+}
+
+// SIMD lanes record what the scalar reference records, bit for bit; a step
+// of two pipeline runs reports its last run, as two steps of half the dt
+// report their second.
+TEST(JointForces, TheSameBitsInEveryLaneAndForTheLastPipelineRun) {
+  const Model model = load_shared_model("anymal_b", true);
+  const step_scene::Scene scene = step_scene::make_scene(model, true);
+  auto run = [&](Lanes lanes, double dt, int substeps, int steps) {
+    StepOptions o;
+    o.lanes = lanes;
+    o.dt = dt;
+    o.substeps = substeps;
+    o.contacts.ground = true;
+    o.record_joint_forces = true;
+    Simulator sim(model, 19, o, scene.dofs);
+    Eigen::VectorXd q = scene.q0;
+    q[2] += 0.02;
+    sim.set_state_all(q, Eigen::VectorXd::Zero(model.nv));
+    for (int c = 0; c < sim.copies(); ++c) sim.set_drive_target(c, scene.q_target, Eigen::VectorXd::Zero(model.nv));
+    sim.step(steps);
+    std::vector<Forces> out;
+    for (int c = 0; c < sim.copies(); ++c) out.push_back(sim.incoming_joint_forces(c));
+    return out;
+  };
+  const std::vector<Forces> simd = run(Lanes::Simd, 0.002, 1, 60), scalar = run(Lanes::Scalar, 0.002, 1, 60);
+  const std::vector<Forces> halves = run(Lanes::Simd, 0.001, 1, 120), runs = run(Lanes::Simd, 0.002, 2, 60);
+  for (int c = 0; c < 19; ++c) {
+    EXPECT_TRUE(same_bits(Eigen::Map<const Eigen::VectorXd>(simd[c].data(), simd[c].size()),
+                          Eigen::Map<const Eigen::VectorXd>(scalar[c].data(), scalar[c].size())))
+        << "copy " << c;
+    EXPECT_TRUE(same_bits(Eigen::Map<const Eigen::VectorXd>(halves[c].data(), halves[c].size()),
+                          Eigen::Map<const Eigen::VectorXd>(runs[c].data(), runs[c].size())))
+        << "copy " << c;
+  }
+  EXPECT_GT(simd[0].norm(), 10.0);
+}
+
+}  // namespace
+}  // namespace lockstep::test
