@@ -156,7 +156,8 @@ void ModelBuilder::check_joint(const ArticulationSpec& spec, const LinkSpec& lin
     throw ModelError(ctx + ": floating joint inside the tree is not supported (only the root may float)");
   check_pose(j.origin, ctx, "origin");
   if (!j.axis.allFinite()) throw ModelError(ctx + ": axis has a non-finite component");
-  if (is_one_dof(j.type) && j.axis.norm() == 0.0) throw ModelError(ctx + ": zero axis");
+  // stableNorm: neither 1e200 (whose norm overflows) nor 1e-200 is zero
+  if (is_one_dof(j.type) && j.axis.stableNorm() == 0.0) throw ModelError(ctx + ": zero axis");
   if (is_one_dof(j.type) && j.limited) {
     if (!std::isfinite(j.lower) || !std::isfinite(j.upper))
       throw ModelError(ctx + ": position limits must be finite numbers");
@@ -211,6 +212,7 @@ int ModelBuilder::add_articulation(const ArticulationSpec& spec_in) {
     }
     if (link.parent.empty())
       throw ModelError(link_ctx(spec, link) + ": several roots ('" + spec.links[0].name + "' and '" + link.name + "')");
+    if (link.parent == link.name) throw ModelError(link_ctx(spec, link) + ": the link is its own parent");
     const auto it = index.find(link.parent);
     if (it == index.end()) {
       bool later = false;
@@ -343,7 +345,10 @@ Model ModelBuilder::finalize() const {
     std::vector<int> frame_of(n, -1);
     for (const int i : order) {
       const LinkSpec& link = spec.links[i];
-      const JointSpec& j = link.joint;
+      // the root's joint gives only the Free joint's name (root_joint_name):
+      // its DOFs take the defaults, as those of a joint without a spec
+      static const JointSpec kRootJoint;
+      const JointSpec& j = i == 0 ? kRootJoint : link.joint;
       const int f = static_cast<int>(m.frame_name.size());
       frame_of[i] = f;
       const int pf = i == 0 ? -1 : frame_of[index.at(link.parent)];
@@ -371,7 +376,9 @@ Model ModelBuilder::finalize() const {
           int dparent = d - 1;
           if (k == 0) dparent = parent_body < 0 ? -1 : m.body_dof_offset[parent_body] + joint_nv(m.body_joint[parent_body]) - 1;
           m.dof_name.push_back(dname);
-          m.dof_by_name[dname] = d;
+          if (!m.dof_by_name.emplace(dname, d).second)
+            throw ModelError(where(spec) + ": joint '" + name + "': its DOF name '" + dname +
+                             "' is already another DOF's (rename one of the joints)");
           m.dof_body.push_back(b);
           m.dof_parent.push_back(dparent);
           const bool limited = is_one_dof(type) && j.limited;
@@ -402,7 +409,7 @@ Model ModelBuilder::finalize() const {
       } else if (is_moving(j.type)) {
         ftype = j.type;
         Eigen::Matrix3d ra = Eigen::Matrix3d::Identity();
-        if (is_one_dof(j.type)) ra = rotation_z_to(j.axis / j.axis.norm());
+        if (is_one_dof(j.type)) ra = rotation_z_to(j.axis.stableNormalized());
         const Eigen::Isometry3d at = m.frame_placement[pf] * j.origin * pure_rotation(ra);
         body = new_body(j.type, j.name, m.frame_body[pf], at);
         placement = pure_rotation(ra.transpose());

@@ -56,7 +56,7 @@ struct JointSpec {
 struct LinkSpec {
   std::string name;
   std::string parent;  // empty for the articulation's root link
-  JointSpec joint;     // the joint from `parent` to this link (ignored for the root)
+  JointSpec joint;     // the joint from `parent` to this link (for the root only its name counts: root_joint_name)
   InertialSpec inertial;
   std::vector<Shape> shapes;  // body/frame fields are filled in by the builder; pose in the link frame
   int source_line = 0;        // the link's line in ArticulationSpec::source, for messages (0: none)

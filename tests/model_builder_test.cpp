@@ -509,6 +509,52 @@ TEST(ModelBuilderError, ParentListedAfterChild) {
   EXPECT_MODEL_ERROR(build(s), "robot_a", "listed after the child");
 }
 
+// Found among the listed links, a link's own name once made it its own
+// parent: dropped from the model with its shapes and everything below it.
+TEST(ModelBuilderError, LinkIsItsOwnParent) {
+  ArticulationSpec s = sample();
+  s.links[2].parent = "robot_b";
+  EXPECT_MODEL_ERROR(build(s), "robot_b", "its own parent");
+}
+
+// A joint's DOF names ("ball[1]") may not be another joint's name.
+TEST(ModelBuilderError, DuplicateDofName) {
+  ArticulationSpec s = sample();
+  s.links[4].joint.name = "ball";  // spherical: DOFs ball[0], ball[1], ball[2]
+  s.links[1].joint.name = "ball[1]";
+  EXPECT_MODEL_ERROR(build(s), "'ball[1]'", "already another DOF's");
+}
+
+// Only the root's joint name counts: its other values (which no check
+// sees) do not reach the Free joint's DOFs.
+TEST(ModelBuilder, FloatingRootTakesOnlyItsJointName) {
+  ArticulationSpec s = sample("r", true);
+  s.links[0].joint.name = "float";
+  s.links[0].joint.armature = -1.0;
+  s.links[0].joint.damping = -3.0;
+  s.links[0].joint.friction = kNaN;
+  s.links[0].joint.effort_limit = -2.0;
+  const Model m = build(s);
+  EXPECT_EQ(m.joint_name[0], "float");
+  for (int d = 0; d < 6; ++d) {
+    EXPECT_EQ(m.dof_armature[d], 0.0);
+    EXPECT_EQ(m.dof_damping[d], 0.0);
+    EXPECT_EQ(m.dof_friction[d], 0.0);
+    EXPECT_EQ(m.dof_effort_limit[d], Model::kInfinity);
+  }
+}
+
+// Axes whose norm overflows or underflows in plain arithmetic: 1e200 became
+// the zero vector and the joint turned about -z.
+TEST(ModelBuilder, HugeAndTinyAxesKeepTheirDirection) {
+  for (double scale : {1e200, 1e-200}) {
+    ArticulationSpec s = sample();
+    s.links[1].joint.axis = Eigen::Vector3d(scale, 0, 0);
+    const Model m = build(s);
+    expect_near(m.body_placement[0].linear() * Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX());
+  }
+}
+
 TEST(ModelBuilderError, SeveralRoots) {
   ArticulationSpec s = sample();
   s.links[2].parent.clear();
