@@ -158,6 +158,37 @@ bool symmetric_positive_semidefinite(const Eigen::Matrix3d& inertia) {
          B.determinant() >= 0;
 }
 
+// A model whose mass matrix is singular has no forward dynamics: its steps
+// give NaN. Checked at the neutral configuration by an LDL^T in DOF order
+// (no pivoting), where a pivot that vanishes names the first DOF whose motion
+// moves no inertia the DOFs before it do not: a link with no inertia about
+// its joint's axis, or a massless floating root that turns with its only
+// child. Relative to the largest diagonal, 1e-12 is far below the lightest
+// DOF of the bundled robots (a fingertip's 1e-6 of a hand's base) and far
+// above round-off.
+void check_mass_matrix(const Model& model) {
+  if (model.nv == 0) return;
+  const BatchDynamics<double> dynamics(model);
+  const BatchState<double> state = dynamics.make_state(1);
+  BatchArray<double> flat = dynamics.make_array(1, model.nv * model.nv);
+  dynamics.mass_matrix(state, flat);
+  const Eigen::VectorXd values = flat.get(0);
+  Eigen::MatrixXd M = Eigen::Map<const Eigen::MatrixXd>(values.data(), model.nv, model.nv);
+  const double scale = M.diagonal().cwiseAbs().maxCoeff();
+  for (int k = 0; k < model.nv; ++k) {  // in place: M's lower triangle becomes L, its diagonal D
+    for (int j = 0; j < k; ++j) M(k, k) -= M(k, j) * M(k, j) * M(j, j);
+    require(M(k, k) > 1e-12 * scale, [&] {
+      return "Simulator: the model's mass matrix is singular: DOF " + std::to_string(k) + " (" + model.dof_name[k] +
+             ") moves no inertia of its own (a link without rotational inertia about its joint's axis, or a "
+             "massless floating root that only turns with its child)";
+    });
+    for (int i = k + 1; i < model.nv; ++i) {
+      for (int j = 0; j < k; ++j) M(i, k) -= M(i, j) * M(k, j) * M(j, j);
+      M(i, k) /= M(k, k);
+    }
+  }
+}
+
 void validate(const Model& model, int copies, const StepOptions& o, const std::vector<DofSettings>& dofs) {
   require(copies >= 1, "Simulator: copies must be at least 1, got " + std::to_string(copies));
   // and its substeps positive in the precision the step runs in
@@ -270,6 +301,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
       options_(options),
       dofs_(dofs.empty() ? default_dof_settings(model) : std::move(dofs)) {
   validate(model, copies, options_, dofs_);
+  check_mass_matrix(model);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
   own_inertia_bodies_.assign(copies, 0);

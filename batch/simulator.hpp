@@ -168,7 +168,9 @@ struct ContactOverflow {
 class Simulator {
  public:
   // dofs: per-DOF joint effects; empty means default_dof_settings(model).
-  // Throws std::invalid_argument naming the option or DOF that is wrong.
+  // Throws std::invalid_argument naming the option or DOF that is wrong,
+  // or the first DOF that moves no inertia of its own where the model's
+  // mass matrix is singular (at its neutral configuration).
   // caller: leave it defaulted (batch/build_info.hpp). The simulator keeps a
   // reference to the model, which must outlive it (a temporary does not
   // compile).

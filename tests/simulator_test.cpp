@@ -21,6 +21,42 @@ StepOptions double_options(double dt) {
 
 // Semi-implicit Euler from rest under gravity g: v_n = -g n dt and
 // z_n = -g dt^2 n (n + 1) / 2, exactly up to rounding.
+// Models whose mass matrix is singular are refused by name: their steps
+// gave NaN. A massless floating root turning with its only child (the child
+// on a revolute adds no inertia the root's rotation lacks), and a point mass
+// on its revolute's axis.
+TEST(Simulator, RefusesAModelWhoseMassMatrixIsSingular) {
+  ArticulationSpec floating;
+  floating.name = "floating";
+  floating.floating_base = true;
+  floating.links.push_back(test::joint_link("root", "", JointType::Fixed, Eigen::Vector3d::UnitZ(), {}));
+  floating.links.push_back(test::massive_link("arm", "root", JointType::Revolute, Eigen::Vector3d::UnitZ(), 1.0));
+  ArticulationSpec pointed;
+  pointed.name = "pointed";
+  pointed.links.push_back(test::joint_link("base", "", JointType::Fixed, Eigen::Vector3d::UnitZ(), {}));
+  LinkSpec point = test::joint_link("point", "base", JointType::Revolute, Eigen::Vector3d::UnitZ(), {});
+  point.inertial.mass = 1.0;  // at the joint's origin, no rotational inertia
+  pointed.links.push_back(point);
+  for (const auto& [spec, dof] : {std::pair{floating, "arm_joint"}, std::pair{pointed, "point_joint"}}) {
+    const Model model = test::build(spec);
+    EXPECT_THROW(
+        {
+          try {
+            Simulator sim(model, 1);
+          } catch (const std::invalid_argument& e) {
+            EXPECT_NE(std::string(e.what()).find(std::string("(") + dof + ") moves no inertia"), std::string::npos)
+                << e.what();
+            throw;
+          }
+        },
+        std::invalid_argument);
+  }
+  // with a massive root the same arm is fine
+  floating.links[0].inertial = floating.links[1].inertial;
+  const Model massive = test::build(floating);
+  EXPECT_NO_THROW(Simulator(massive, 1));
+}
+
 TEST(Simulator, FreeFallFollowsSemiImplicitEuler) {
   const Model model = free_box(Eigen::Vector3d(0.1, 0.2, 0.3), 2.0);
   for (Precision precision : {Precision::Float, Precision::Double}) {
