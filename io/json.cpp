@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -245,6 +246,9 @@ class Parser {
 Value parse(const std::string& text, const std::string& source) { return Parser(text, source).parse_document(); }
 
 Value parse_file(const std::string& path) {
+  // an ifstream opens a directory, and reading it gives no text
+  std::error_code ignored;
+  if (std::filesystem::is_directory(path, ignored)) throw ParseError(path + ": is a directory, not a JSON file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ParseError(path + ": cannot open file");
   std::ostringstream text;

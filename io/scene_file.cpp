@@ -51,9 +51,10 @@ const char* token_name(const Token<E> (&tokens)[N], E value) {
   return "?";
 }
 
-// Seeds up to 2^53 are written as numbers (a double holds them exactly),
-// larger ones as decimal strings.
-constexpr std::uint64_t kLargestExactInteger = std::uint64_t{1} << 53;
+// Seeds below 2^53 are written and read as numbers, larger ones as decimal
+// strings. A double holds 2^53 exactly, but 2^53 + 1 too reads as 2^53, so
+// a number from 2^53 on may not be the seed that was written.
+constexpr std::uint64_t kLargestNumberSeed = (std::uint64_t{1} << 53) - 1;
 
 // A ground normal this close to unit length is kept as written, so that a
 // written scene reads back bit for bit (normalising twice can move an ulp).
@@ -490,10 +491,15 @@ void read_step(const json::Value& v, const At& at, StepOptions& s) {
   set_bool(o, "record_applied_torque", s.record_applied_torque);
 }
 
-// A number up to 2^53, or a string of decimal digits for any 64-bit seed.
+// A number below 2^53, or a string of decimal digits for any 64-bit seed.
 std::uint64_t read_seed(const json::Value& v, const At& at) {
-  if (v.type != json::Value::Type::String)
-    return static_cast<std::uint64_t>(read_integer(v, at, 0, static_cast<double>(kLargestExactInteger)));
+  if (v.type != json::Value::Type::String) {
+    const double x = read_number(v, at);
+    if (x > static_cast<double>(kLargestNumberSeed))
+      at.fail("a seed from 2^53 on must be a decimal string (\"9007199254740993\"): as a number it may have been "
+              "rounded, got " + json::number(x));
+    return static_cast<std::uint64_t>(read_integer(v, at, 0, static_cast<double>(kLargestNumberSeed)));
+  }
   const std::string& s = v.string;
   std::uint64_t seed = 0;
   const auto [end, error] = std::from_chars(s.data(), s.data() + s.size(), seed);
@@ -896,7 +902,7 @@ json::Value step_value(const StepOptions& s) {
 }
 
 json::Value env_value(const VecEnvOptions& env) {
-  const json::Value seed = env.seed <= kLargestExactInteger ? number_value(static_cast<double>(env.seed))
+  const json::Value seed = env.seed <= kLargestNumberSeed ? number_value(static_cast<double>(env.seed))
                                                              : string_value(std::to_string(env.seed));
   return object_value({{"action_mode", string_value(token_name(kActionModes, env.action_mode))},
                        {"control_steps", number_value(env.control_steps)},

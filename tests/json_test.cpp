@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
 
 namespace lockstep::json {
@@ -73,6 +74,20 @@ TEST(CliJson, MissingFileIsAParseErrorNamingIt) {
   } catch (const ParseError& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/state.json"), std::string::npos);
   }
+}
+
+// A directory opens as a stream that reads nothing: it was reported as
+// "1:1: unexpected end of input".
+TEST(CliJson, DirectoryIsAParseErrorSayingSo) {
+  const std::string dir = ::testing::TempDir() + "lockstep_json_dir.json";
+  std::filesystem::create_directories(dir);
+  try {
+    parse_file(dir);
+    FAIL() << "no error";
+  } catch (const ParseError& e) {
+    EXPECT_NE(std::string(e.what()).find(dir + ": is a directory"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(dir);
 }
 
 TEST(CliJson, NumbersRoundTripAndNonFiniteBecomesNull) {

@@ -87,6 +87,14 @@ TEST(Randomization, RejectsBadRangesNamingTheField) {
   r = {};
   r.armature_add = {-0.01, 0.0};
   expect_rejected(r, "randomization.armature_add");
+  // the bounds as written, not rounded to six decimals (which read
+  // "low 0.900000 is above high 0.900000" and "got -0.000000")
+  r = {};
+  r.mass_scale = {0.9000001, 0.9};
+  expect_rejected(r, "randomization.mass_scale: low 0.9000001 is above high 0.9");
+  r = {};
+  r.kp_scale = {-1e-9, 1.0};
+  expect_rejected(r, "randomization.kp_scale: low must be >= 0, got -1e-09");
 }
 
 }  // namespace

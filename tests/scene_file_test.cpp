@@ -497,7 +497,7 @@ TEST_F(SceneFile, ToJsonKeepsEveryBitOfAProgrammaticScene) {
   e.dofs[dof(m, "FL_knee")].drive_stiffness = std::acos(-1.0);
   e.dofs[dof(m, "FL_knee")].max_force = Model::kInfinity;
   e.dofs[dof(m, "HR_hip_abad")].damping = 1e-300;
-  e.seed = 18446744073709551557u;  // above 2^53: written as a string
+  e.seed = 18446744073709551557u;  // from 2^53 on: written as a string
   e.randomization.com_offset = {-1.0 / 3.0, 1.0 / 3.0};
   e.initial_q = m.neutral_configuration();
   e.initial_q.head<3>() << 0.1, 0.2, 1.0 / 3.0;
@@ -515,6 +515,16 @@ TEST_F(SceneFile, ToJsonWritesAMissingInitialVelocityAsRest) {
   const Scene back = load_scene(write("s.json", scene_to_json(s)));
   EXPECT_EQ(back.env.initial_q, s.env.initial_q);
   EXPECT_EQ(back.env.initial_v, Eigen::VectorXd::Zero(s.model.nv));
+}
+
+// The seeds on either side of 2^53 (a number below it, a string from it on)
+// read back as written.
+TEST_F(SceneFile, SeedsAroundTwoToThe53RoundTrip) {
+  Scene s = scene_from_urdf(kQuadruped, false, false);
+  for (std::uint64_t seed : {(std::uint64_t{1} << 53) - 1, std::uint64_t{1} << 53, (std::uint64_t{1} << 53) + 1}) {
+    s.env.seed = seed;
+    EXPECT_EQ(load_scene(write("s.json", scene_to_json(s))).env.seed, seed);
+  }
 }
 
 TEST_F(SceneFile, ToJsonRefusesWhatTheFormatCannotHold) {
@@ -730,6 +740,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"negative_episode_steps", R"(, "env": {"episode_steps": -1})", {"env.episode_steps: must lie in [0,"}},
         BadScene{"negative_seed", R"(, "env": {"seed": -1})", {"env.seed: must lie in [0,"}},
         BadScene{"bad_seed_string", R"(, "env": {"seed": "12x"})", {"env.seed: expected an integer in [0, 2^64)"}},
+        // 2^53 + 1 as a number reads as 2^53: it was loaded as another seed
+        BadScene{"rounded_seed", R"(, "env": {"seed": 9007199254740993})", {"env.seed: a seed from 2^53 on must be"}},
         BadScene{"drive_unknown_joint", R"(, "drives": {"joints": {"knee": {"kp": 1}}})",
                  {"drives.joints.knee: unknown joint \"knee\""}},
         BadScene{"drive_misspelled_joint", R"(, "drives": {"joints": {"fl_knie": {"kp": 1}}})",
