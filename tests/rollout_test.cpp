@@ -17,10 +17,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <tuple>
 
 namespace lockstep {
 namespace {
@@ -254,6 +256,43 @@ TEST(Rollout, DefaultThreadsFollowTheCpuAffinity) {
   ::waitpid(child, &status, 0);
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "status " << status;
   EXPECT_EQ(std::get<std::int64_t>(RolloutReader(file).attribute("threads")), 1);
+}
+
+// `lockstep rollout` with arguments, stdout and stderr together: the exit
+// code and the text.
+std::pair<int, std::string> run_rollout_program(const std::string& arguments) {
+  const std::string command = std::string(LOCKSTEP_TOOL_PATH) + " rollout " + arguments + " 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  std::string text;
+  char buffer[4096];
+  while (const std::size_t n = std::fread(buffer, 1, sizeof buffer, pipe)) text.append(buffer, n);
+  const int status = ::pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text};
+}
+
+// "replacing FILE" is said when the file is replaced: it was said before a
+// scene that cannot be simulated stopped the run (the file left as it was)
+// and for a link, which the writer refuses.
+TEST(Rollout, SaysReplacingOnlyWhenItReplacesTheFile) {
+  const TempDir dir;
+  const std::string file = (dir.path / "old.h5").string(), link = (dir.path / "link.h5").string();
+  std::ofstream(file) << "old";
+  const std::string unsimulable =
+      std::string(LOCKSTEP_MODELS_DIR) + "/../tests/data/scene_position_targets_without_gains.json";
+  auto [rc, text] = run_rollout_program(unsimulable + " --envs 2 --steps 1 --out " + file);
+  EXPECT_EQ(rc, 2) << text;
+  EXPECT_EQ(text.find("replacing"), std::string::npos) << text;
+  std::string kept;
+  std::getline(std::ifstream(file), kept);
+  EXPECT_EQ(kept, "old");
+  fs::create_symlink(file, link);
+  std::tie(rc, text) = run_rollout_program(bundled_scene() + " --envs 2 --steps 1 --out " + link);
+  EXPECT_EQ(rc, 4) << text;
+  EXPECT_EQ(text.find("replacing"), std::string::npos) << text;
+  std::tie(rc, text) = run_rollout_program(bundled_scene() + " --envs 2 --steps 1 --out " + file);
+  EXPECT_EQ(rc, 0) << text;
+  EXPECT_NE(text.find("replacing " + file), std::string::npos) << text;
+  EXPECT_TRUE(RolloutReader(file).complete());
 }
 
 // The file after an interrupted rollout opens, holds at least `seen` steps,

@@ -174,8 +174,9 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   for (const std::string& input : {scene.source, scene.model_path})
     if (std::filesystem::equivalent(config.out, input, missing))
       throw UsageError("--out " + config.out + " is the input file " + input + "; the rollout would overwrite it");
-  if (std::filesystem::is_regular_file(config.out, missing))
-    std::fprintf(stderr, "lockstep rollout: replacing %s\n", config.out.c_str());
+  // said once the file is replaced (the recorder refuses a link, and leaves
+  // the file as it was when the scene cannot be simulated)
+  const bool replacing = std::filesystem::is_regular_file(std::filesystem::symlink_status(config.out, missing));
   if (config.precision) scene.env.step.precision = *config.precision;
   if (config.seed) scene.env.seed = *config.seed;
   if (config.episode_steps) scene.env.episode_steps = *config.episode_steps;
@@ -196,6 +197,7 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   RolloutInfo info{scene_to_json(scene), scene.model_path, policy_name(config.policy), {}};
   info.extra.push_back({"threads", static_cast<std::int64_t>(threads)});
   RolloutRecorder recorder(env, config.out, info, config.file);
+  if (replacing) std::fprintf(stderr, "lockstep rollout: replacing %s\n", config.out.c_str());
   Policy policy(config.policy, env, scene.env.seed);
 
   RowMatrix actions;
