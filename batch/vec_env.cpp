@@ -79,6 +79,7 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
   observations_ = Observations(copies, model, contacts_);
   terminal_ = Observations(copies, model, contacts_);
   reward_out_ = Eigen::VectorXd::Zero(copies);
+  reward_actions_ = RowMatrix::Zero(copies, action_size());
   terminated_.assign(copies, 0);
   truncated_.assign(copies, 0);
   faulted_.assign(copies, 0);
@@ -292,7 +293,8 @@ void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
   reward_out_.setZero();
   std::fill(terminated_.begin(), terminated_.end(), 0);
   if (reward_) {
-    reward_(observations_, actions, reward_out_, terminated_);
+    reward_actions_ = actions;
+    reward_(observations_, reward_actions_, reward_out_, terminated_);
     if (reward_out_.size() != copies() || static_cast<int>(terminated_.size()) != copies())
       throw std::logic_error("VecEnv::step: the reward function resized its outputs: reward has " +
                              std::to_string(reward_out_.size()) + " entries and terminated " +

@@ -183,6 +183,9 @@ class VecEnv {
   bool ready_ = false;  // reset() was called
   bool contacts_ = false;  // the contacts stage runs: the copies keep a ground of their own
   RewardFunction reward_;
+  // the step's actions as the RowMatrix the reward function takes: copied
+  // into, where binding step()'s Ref to it made a new matrix every step
+  RowMatrix reward_actions_;
   Observations observations_, terminal_;
   Eigen::VectorXd reward_out_;
   std::vector<std::uint8_t> terminated_, truncated_, faulted_;

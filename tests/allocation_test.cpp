@@ -264,8 +264,8 @@ TEST(Allocations, ASimulatorHoldsBytesPerCopyForEachCopyAndNothingElsePerCopy) {
   }
 }
 
-// VecEnv::step: the actions, the steps, the observations and the
-// episodes' bookkeeping, and with episodes of 3 env steps also auto-reset
+// VecEnv::step: the actions, the steps, the observations, the reward
+// function's call and the episodes' bookkeeping, and with episodes of 3 env steps also auto-reset
 // (randomisation, the copies' new state, terminal observations). The
 // counted steps follow two uncounted ones; with episodes they include the
 // first step that resets copies.
@@ -289,6 +289,9 @@ TEST(Allocations, VecEnvStepAllocatesNothingWithOrWithoutResets) {
       r.ground_friction = {0.6, 1.0};
       r.joint_position_noise = r.root_yaw_noise = {-0.05, 0.05};
       VecEnv env(model, 40, o);
+      // a reward function too: its actions were a new matrix every step
+      env.set_reward([](const Observations& obs, const RowMatrix& actions, Eigen::VectorXd& reward,
+                        std::vector<std::uint8_t>&) { reward = obs.q.col(2) - actions.rowwise().squaredNorm(); });
       env.reset();
       const RowMatrix actions = RowMatrix::Zero(40, env.action_size());
       env.step(actions);
