@@ -86,6 +86,18 @@ void BatchDynamics<L>::body_poses(const BatchState<Scalar>& s, BatchArray<Scalar
 }
 
 template <class L>
+void BatchDynamics<L>::frame_accelerations(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+  check(s, "frame_accelerations");
+  check(out, s.copies(), 6 * km_.nframe, "frame_accelerations");
+  for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
+    joint_transforms<L>(km_, s.q.block(b), ws);
+    world_transforms<L>(km_, ws);
+    body_accelerations<L>(km_, s.v.block(b), s.qacc.block(b), ws);
+    lockstep::frame_accelerations<L>(km_, ws, out.block(b));
+  });
+}
+
+template <class L>
 void BatchDynamics<L>::forward_dynamics(const BatchState<Scalar>& s, BatchArray<Scalar>& qacc) const {
   check(s, "forward_dynamics");
   check(qacc, s.copies(), km_.nv, "forward_dynamics");

@@ -48,6 +48,10 @@ class BatchDynamics {
   // (nframe x 6) spatial velocity of every frame at s.q, s.v, world axes:
   // [v; w], v the velocity of the frame's origin (point_jacobian's rows).
   void frame_velocities(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
+  // (nframe x 6) classical acceleration of every frame's origin and its
+  // angular acceleration at s.q, s.v, s.qacc, world axes: [a; alpha]
+  // (without gravity: a body at rest reads 0).
+  void frame_accelerations(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
   // (nv) ABA: joint accelerations from s.q, s.v, s.tau, s.wrench, s.gravity.
   void forward_dynamics(const BatchState<Scalar>& s, BatchArray<Scalar>& qacc) const;
   // (nv) RNEA: joint forces for s.q, s.v, s.qacc, s.wrench, s.gravity.

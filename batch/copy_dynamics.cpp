@@ -145,6 +145,13 @@ Eigen::MatrixXd CopyDynamics::frame_velocities(const Eigen::VectorXd& q, const E
   return Eigen::Map<const Eigen::MatrixXd>(evaluate({&q, &v}, LOCKSTEP_BATCH_METHOD(frame_velocities), 6 * frames).data(),
                                            6, frames);
 }
+Eigen::MatrixXd CopyDynamics::frame_accelerations(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                                                  const Eigen::VectorXd& qacc) const {
+  const int frames = static_cast<int>(model_->frame_name.size());
+  const Eigen::VectorXd flat =
+      evaluate({&q, &v, nullptr, &qacc}, LOCKSTEP_BATCH_METHOD(frame_accelerations), 6 * frames);
+  return Eigen::Map<const Eigen::MatrixXd>(flat.data(), 6, frames);
+}
 Eigen::MatrixXd CopyDynamics::mass_matrix(const Eigen::VectorXd& q) const {
   const int n = model_->nv;
   return row_major(evaluate({&q}, LOCKSTEP_BATCH_METHOD(mass_matrix), n * n), n, n);

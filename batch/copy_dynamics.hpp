@@ -34,6 +34,11 @@ class CopyDynamics {
   // (6 x nframe) spatial velocity of every frame, world axes: column f is
   // [v; w], v the velocity of frame f's origin, w its angular velocity.
   Eigen::MatrixXd frame_velocities(const Eigen::VectorXd& q, const Eigen::VectorXd& v) const;
+  // (6 x nframe) column f is [a; alpha], world axes: the classical
+  // acceleration of frame f's origin and its angular acceleration during
+  // the motion qacc (without gravity).
+  Eigen::MatrixXd frame_accelerations(const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                                      const Eigen::VectorXd& qacc) const;
 
   Eigen::MatrixXd mass_matrix(const Eigen::VectorXd& q) const;                 // CRBA, armature included
   Eigen::MatrixXd inverse_mass_matrix(const Eigen::VectorXd& q) const;

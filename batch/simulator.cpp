@@ -33,7 +33,7 @@ std::size_t StepBatch<T>::bytes_per_copy() const {
                                  &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
                                  &contact_dropped, &contact_overflow_steps, &momentum_remainder, &motion_q, &motion_v,
-                                 &motion_acceleration, &motion_recorded})
+                                 &motion_acceleration, &motion_gyroscopic, &motion_recorded})
     values += static_cast<std::size_t>(a->size());
   return values * sizeof(T);
 }
@@ -616,10 +616,10 @@ auto applied_torque_report(Batch& b) {
 }
 
 // incoming_joint_forces()'s motion of a copy's last step (empty arrays
-// without StepOptions::record_joint_forces).
+// without StepOptions::record_motion).
 template <class Batch>
 auto joint_force_motion(Batch& b) {
-  return std::array{&b.motion_q, &b.motion_v, &b.motion_acceleration, &b.motion_recorded};
+  return std::array{&b.motion_q, &b.motion_v, &b.motion_acceleration, &b.motion_gyroscopic, &b.motion_recorded};
 }
 
 template <class Arrays>
@@ -684,7 +684,7 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     require(s.applied_torque.size() == packed_size(applied_torque_report(b)),
             "restore: the snapshot's applied torques do not match this simulator's record_applied_torque");
     require(s.joint_force_motion.size() == packed_size(joint_force_motion(b)),
-            "restore: the snapshot's joint-force motion does not match this simulator's record_joint_forces");
+            "restore: the snapshot's joint-force motion does not match this simulator's record_motion");
     require(s.scene_key == 0 || s.scene_key == scene_key_,
             "restore: the snapshot was taken from another scene (its model's joints or links, its joint rows "
             "or its contact pairs differ from this simulator's)");
@@ -927,19 +927,15 @@ AppliedTorque Simulator::applied_torque(int copy) const {
   });
 }
 
-Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::incoming_joint_forces(int copy) const {
-  check_copy(copy, "incoming_joint_forces");
-  if (!options_.record_joint_forces)
-    throw std::logic_error("Simulator::incoming_joint_forces needs StepOptions::record_joint_forces");
-  const int nbody = model_->nbody;
-  Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, nbody);
+bool Simulator::recorded_motion(int copy, const char* function, BatchState<double>& one) const {
+  check_copy(copy, function);
+  if (!options_.record_motion)
+    throw std::logic_error(std::string("Simulator::") + function + " needs StepOptions::record_motion");
   // The run's motion, and the copy's gravity, inertias and wrenches as the
   // step takes them (batch/step_engine.hpp: the model's inertias and no
   // wrenches where their stages are skipped), in double.
   const auto runs = [&](Stage stage) { return plan()[static_cast<int>(stage)].runs; };
-  const BatchDynamics<double> dynamics(*model_);
-  BatchState<double> one = dynamics.make_state(1);
-  const bool recorded = visit([&](auto& b) {
+  return visit([&](auto& b) {
     one.q.set(0, b.motion_q.get(copy));
     one.v.set(0, b.motion_v.get(copy));
     one.qacc.set(0, b.motion_acceleration.get(copy));
@@ -948,7 +944,28 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::incoming_joint_forces(int co
     if (runs(Stage::ExternalWrenches)) one.wrench.set(0, b.state.wrench.get(copy));
     return b.motion_recorded.at(copy, 0) != 0;
   });
-  if (!recorded) return out;
+}
+
+Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::link_accelerations(int copy) const {
+  const int frames = static_cast<int>(model_->frame_name.size());
+  const BatchDynamics<double> dynamics(*model_);
+  BatchState<double> one = dynamics.make_state(1);
+  if (!recorded_motion(copy, "link_accelerations", one)) return Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, frames);
+  BatchArray<double> out = dynamics.make_array(1, 6 * frames);
+  dynamics.frame_accelerations(one, out);
+  const Eigen::VectorXd flat = out.get(0);
+  return Eigen::Map<const Eigen::Matrix<double, 6, Eigen::Dynamic>>(flat.data(), 6, frames);
+}
+
+Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::incoming_joint_forces(int copy) const {
+  const int nbody = model_->nbody;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, nbody);
+  const BatchDynamics<double> dynamics(*model_);
+  BatchState<double> one = dynamics.make_state(1);
+  if (!recorded_motion(copy, "incoming_joint_forces", one)) return out;
+  // the step's forces balance the motion without the implicit gyroscopic
+  // share (RNEA takes the velocity product at v0, as the step's ABA does)
+  visit([&](auto& b) { one.qacc.set(0, one.qacc.get(0) - b.motion_gyroscopic.get(copy)); });
   // The contact forces join the link wrenches, their torque taken about
   // each body's COM at the start of the step (where the contact points are).
   const Eigen::Matrix<double, 6, Eigen::Dynamic> contact = body_contact_wrenches(copy);

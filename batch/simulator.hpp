@@ -75,14 +75,16 @@ struct StepBatch {
   // limit impulses / dt; with substeps, the mean over the step's pipeline
   // runs. Empty otherwise.
   BatchArray<T> applied_drive, applied_passive, applied_friction, applied_limits;
-  // With StepOptions::record_joint_forces, the motion of the last step's
-  // last pipeline run, from which Simulator::incoming_joint_forces finds
-  // the joints' forces: the run's start state (nq, nv), its acceleration
-  // (nv: (v1 - v0) / h, a Free joint's linear part the spatial acceleration
-  // RNEA takes, the frame's turn rate w0 x v0 taken out), and 1 where a run
-  // was recorded since the copy's last reset or set_state, else 0. Empty
-  // otherwise.
-  BatchArray<T> motion_q, motion_v, motion_acceleration, motion_recorded;
+  // With StepOptions::record_motion, the motion of the last step's last
+  // pipeline run, from which Simulator::incoming_joint_forces and
+  // link_accelerations find theirs: the run's start state (nq, nv); its
+  // acceleration (nv: (v1 - v0) / h, a Free joint's linear part the spatial
+  // acceleration, the frame's turn rate w0 x v0 taken out); of that, the
+  // Free joints' share from the implicit gyroscopic force (nv, zero on the
+  // other DOFs), which RNEA's balance of the step's forces leaves out; and
+  // 1 where a run was recorded since the copy's last reset or set_state,
+  // else 0. Empty otherwise.
+  BatchArray<T> motion_q, motion_v, motion_acceleration, motion_gyroscopic, motion_recorded;
   // Contacts (empty without them): the ground plane n . x = d as (n, d) and
   // its friction; per contact slot the point's candidate number (-1: none,
   // and the slot's other entries are then unspecified; a copy's contacts
@@ -140,8 +142,9 @@ struct CopySnapshot {
   // applied_torque()'s four sources of the last step (empty without
   // StepOptions::record_applied_torque)
   Eigen::VectorXd applied_torque;
-  // StepBatch's motion_q, motion_v, motion_acceleration and motion_recorded
-  // (empty without StepOptions::record_joint_forces)
+  // StepBatch's motion_q, motion_v, motion_acceleration, motion_gyroscopic
+  // and motion_recorded
+  // (empty without StepOptions::record_motion)
   Eigen::VectorXd joint_force_motion;
   // Simulator::scene_key() of the simulator it came from: restore refuses a
   // snapshot of another scene whose arrays happen to have the same sizes.
@@ -262,7 +265,7 @@ class Simulator {
   // The force and torque each joint transmitted from the parent to its child
   // body in the copy's last step (RaiSim's force and torque at the joint,
   // PhysX's link incoming joint force; needs
-  // StepOptions::record_joint_forces): one column per body, [force; torque
+  // StepOptions::record_motion): one column per body, [force; torque
   // about the joint origin (the child body's origin)], world axes at the
   // start of the step. It is RNEA on the step's motion, with gravity, the
   // link wrenches and the contact forces: constraint force and actuation
@@ -275,6 +278,14 @@ class Simulator {
   // forces are found when read. docs/conventions.md, "Joint forces after a
   // step".
   Eigen::Matrix<double, 6, Eigen::Dynamic> incoming_joint_forces(int copy) const;
+  // The classical acceleration of every link's (frame's) origin and its
+  // angular acceleration in the copy's last step (needs
+  // StepOptions::record_motion): one column per frame, [a; alpha], world
+  // axes at the start of the step. The motion's own acceleration: a link
+  // in free fall reads g, where an accelerometer on it would read a - g = 0.
+  // From the same motion as incoming_joint_forces, with the same caveats;
+  // PhysX's link acceleration, there at the COM.
+  Eigen::Matrix<double, 6, Eigen::Dynamic> link_accelerations(int copy) const;
 
   // Contacts. The candidate shape pairs after filtering (and notes on
   // shapes left out); the ground of one copy (plane through (0, 0, height)
@@ -324,6 +335,11 @@ class Simulator {
   StepPlan step_plan() const;
   std::string rows_summary() const;
   void check_copy(int copy, const char* function) const;  // throws std::out_of_range naming the function
+  // The copy's last recorded motion into `one` (a one-copy double state),
+  // with its gravity, and its inertias and wrenches as the step took them;
+  // false where no step was recorded since its reset. Throws without
+  // StepOptions::record_motion, naming `function`.
+  bool recorded_motion(int copy, const char* function, BatchState<double>& one) const;
   void check_velocity(const Eigen::VectorXd& v, const char* what) const;
   void check_per_dof(const Eigen::VectorXd& values, const char* what) const;  // nv finite values >= 0
   void check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const;

@@ -131,9 +131,9 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   // without recording, empty per copy (a snapshot packs none)
   for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
     *a = BatchArray<T>(copies, options.record_applied_torque ? nv : 0, kWidth);
-  const bool motion = options.record_joint_forces;
+  const bool motion = options.record_motion;
   batch_.motion_q = BatchArray<T>(copies, motion ? model.nq : 0, kWidth);
-  for (BatchArray<T>* a : {&batch_.motion_v, &batch_.motion_acceleration})
+  for (BatchArray<T>* a : {&batch_.motion_v, &batch_.motion_acceleration, &batch_.motion_gyroscopic})
     *a = BatchArray<T>(copies, motion ? nv : 0, kWidth);
   batch_.motion_recorded = BatchArray<T>(copies, motion ? 1 : 0, kWidth);
   const JointParameters scene = scene_joint_parameters(model, dofs);
@@ -445,12 +445,12 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
       store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
                         contact_arrays(block), first_run);
     s.clock.lap(&StepProfile::constraint_solve);
-    if (options_.record_joint_forces) record_motion(block, h, s);
+    if (options_.record_motion) record_motion(block, h, s);
     T* velocity = fields(s.qacc);  // free again: the position velocity
     const T step = position_velocity(s, h, velocity);
     integrate<L>(km_, q, velocity, step, q_next);
     turn_free_linear<L>(km_, velocity, step, fields(s.u1), Turn::ToEnd);
-  } else if (options_.record_joint_forces) {
+  } else if (options_.record_motion) {
     record_motion(block, h, s);
   }
   if (options_.record_applied_torque) record_applied(block, h, first_run, s);
@@ -1054,13 +1054,15 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
   }
 }
 
-// StepOptions::record_joint_forces: the run's start state and acceleration
+// StepOptions::record_motion: the run's start state and acceleration
 // (u1 - u0) / h, before q and v are overwritten. Except with RK4, which
 // integrates in body coordinates, a Free joint's linear u1 is still in the
 // frame at the start of the step: begin_block added h times the turn rate
-// w0 x v0 (with the implicit gyroscopic force, linearised about the free
-// acceleration in s.qacc) to the spatial acceleration that RNEA takes, and
-// that is taken out again here, as it was put in.
+// w0 x v0 to the spatial acceleration, which is taken out here, and with
+// it the implicit gyroscopic force's part (linearised about the free
+// acceleration in s.qacc), which is kept apart: the motion's acceleration
+// holds it, while RNEA, which takes the velocity product at v0, balances
+// the step's forces without it.
 template <class L>
 void StepEngine<L>::record_motion(int block, T h, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
@@ -1074,8 +1076,12 @@ void StepEngine<L>::record_motion(int block, T h, Scratch& s) {
     lane::store(s.u0[k], v_out + k * W);
     lane::store((s.u1[k] - s.u0[k]) * inv_h, acceleration + k * W);
   }
-  if (options_.integrator != Integrator::RK4)
-    add_frame_turn_rate<L>(km_, v_out, fields(s.qacc), gyroscopic_weight(h), T(-1), acceleration);
+  T* gyroscopic = batch_.motion_gyroscopic.block(block);
+  for (int k = 0; k < km_.nv; ++k) lane::store(L(T(0)), gyroscopic + k * W);
+  if (options_.integrator != Integrator::RK4) {
+    add_frame_turn_rate<L>(km_, v_out, fields(s.qacc), T(0), T(-1), acceleration);
+    add_frame_turn_rate<L>(km_, v_out, fields(s.qacc), gyroscopic_weight(h), T(1), gyroscopic, TurnPart::Implicit);
+  }
   lane::store(L(T(1)), batch_.motion_recorded.block(block));
 }
 

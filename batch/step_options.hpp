@@ -124,10 +124,10 @@ struct StepOptions {
   bool conserve_linear_momentum = false;
   bool reset_on_fault = false;  // put a faulted copy back to its initial state
   bool record_applied_torque = false;  // keep RaiSim's per-source torque of the last step
-  // Keep the last step's motion for Simulator::incoming_joint_forces
-  // (RaiSim's setComputeInverseDynamics): nq + 2 nv + 1 values per copy
-  // written per step; the forces are found when read.
-  bool record_joint_forces = false;
+  // Keep the last step's motion for Simulator::incoming_joint_forces and
+  // link_accelerations (RaiSim's setComputeInverseDynamics): nq + 3 nv + 1
+  // values per copy written per step; the readouts are found when read.
+  bool record_motion = false;
   ContactSettings contacts;  // ground, static boxes, filters, contact parameters
   std::array<StageMode, kStageCount> stages{};  // all Auto
 

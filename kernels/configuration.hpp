@@ -145,11 +145,13 @@ void integrate(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>
 // flies straight.
 
 // x's Free-joint linear parts += scale (w x v + g h (alpha x v + w x a)),
-// with (v, w) from v and (a, alpha) from a; g h = weight_h.
+// with (v, w) from v and (a, alpha) from a; g h = weight_h. With
+// TurnPart::Implicit only the implicit gyroscopic part, scale g h (...).
+enum class TurnPart { Whole, Implicit };
 template <class L>
 void add_frame_turn_rate(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* v,
                          const lane::scalar_t<L>* a, lane::scalar_t<L> weight_h, lane::scalar_t<L> scale,
-                         lane::scalar_t<L>* x) {
+                         lane::scalar_t<L>* x, TurnPart part = TurnPart::Whole) {
   constexpr std::size_t W = lane::width_v<L>;
   for (int b = 0; b < km.nbody; ++b) {
     if (km.body_joint[b] != JointType::Free) continue;
@@ -157,7 +159,8 @@ void add_frame_turn_rate(const KernelModel<lane::scalar_t<L>>& km, const lane::s
     const Vec3<L> lin = load_vec3<L>(v + o), w = load_vec3<L>(v + o + 3 * W);
     const Vec3<L> dlin = load_vec3<L>(a + o), dw = load_vec3<L>(a + o + 3 * W);
     const Vec3<L> change = spatial::add(spatial::cross(dw, lin), spatial::cross(w, dlin));
-    const Vec3<L> rate = spatial::add(spatial::cross(w, lin), spatial::scale(L(weight_h), change));
+    const Vec3<L> implicit = spatial::scale(L(weight_h), change);
+    const Vec3<L> rate = part == TurnPart::Whole ? spatial::add(spatial::cross(w, lin), implicit) : implicit;
     store_vec3(spatial::add(load_vec3<L>(x + o), spatial::scale(L(scale), rate)), x + o);
   }
 }

@@ -166,6 +166,28 @@ TEST_P(Utilities, IncomingJointForcesProjectToJointForces) {
   }
 }
 
+// A frame's acceleration is the rate of its world velocity along the
+// motion: q(t) = q (+) (v t + a t^2 / 2), v(t) = v + a t, whose velocity and
+// acceleration at t = 0 are v and a (for a Spherical joint's body-frame
+// rate too, to O(t^2)); central differences over +-1e-4 s. A Free root is
+// held still: its linear velocity integrates in the start frame, not along
+// this path.
+TEST_P(Utilities, FrameAccelerationsAreTheRateOfTheFrameVelocities) {
+  const Eigen::VectorXd q = test::random_configuration(model_, rng_);
+  Eigen::VectorXd v = test::random_vector(model_.nv, rng_, 1.0), a = test::random_vector(model_.nv, rng_, 2.0);
+  for (int k = 0; k < model_.nv; ++k)
+    if (model_.body_joint[model_.dof_body[k]] == JointType::Free) v[k] = a[k] = 0;
+  const double eps = 1e-4;
+  auto velocities_at = [&](double t) {
+    return dyn_->frame_velocities(dyn_->integrate(q, v * t + 0.5 * t * t * a, 1.0), v + t * a);
+  };
+  const Eigen::MatrixXd rate = (velocities_at(eps) - velocities_at(-eps)) / (2 * eps);
+  const Eigen::MatrixXd acc = dyn_->frame_accelerations(q, v, a);
+  // truncation eps^2 |d3V/dt3| (about 1e-8 x 100 here) and round-off 1e-16 / eps
+  EXPECT_LE((acc - rate).cwiseAbs().maxCoeff(), 1e-5 * (1.0 + acc.cwiseAbs().maxCoeff()));
+  EXPECT_GT(acc.cwiseAbs().maxCoeff(), 0.1);
+}
+
 // For the motion that tau produces, the forces transmitted during a motion
 // are the incoming joint forces under tau; with wrenches too.
 TEST_P(Utilities, TransmittedJointForcesOfTheForwardMotionAreTheIncomingOnes) {

@@ -1,5 +1,5 @@
 // Simulator::incoming_joint_forces: the force and torque each joint
-// transmitted in the last step (StepOptions::record_joint_forces), checked
+// transmitted in the last step (StepOptions::record_motion), checked
 // against the step's own applied torques, an analytic pendulum and a
 // standing quadruped's statics; and how it behaves across resets,
 // snapshots, lanes and substeps.
@@ -96,7 +96,7 @@ TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueOnALandingQuadruped) {
       o.solver = solver;
       o.contacts.ground = true;
       o.record_applied_torque = true;
-      o.record_joint_forces = true;
+      o.record_motion = true;
       Simulator sim(model, 1, o, scene.dofs);
       Eigen::VectorXd q = scene.q0;
       q[2] += 0.05;
@@ -126,7 +126,7 @@ TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueWithEveryJointRow) {
     StepOptions o;
     o.precision = precision;
     o.record_applied_torque = true;
-    o.record_joint_forces = true;
+    o.record_motion = true;
     Simulator sim(model, 1, o, dofs);
     sim.set_armature(0, armature);
     Eigen::VectorXd target = Eigen::VectorXd::Constant(model.nq, 1.0);  // beyond the limits at 0.4
@@ -149,7 +149,7 @@ TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueOnSphericalJoints) {
   StepOptions o;
   o.precision = Precision::Double;
   o.record_applied_torque = true;
-  o.record_joint_forces = true;
+  o.record_motion = true;
   Simulator sim(model, 1, o, dofs);
   std::mt19937 rng(5);
   sim.set_drive_target(0, random_configuration(model, rng), Eigen::VectorXd::Zero(model.nv));
@@ -168,7 +168,7 @@ TEST(JointForces, ThePivotOfASwingingRodCarriesItsCentripetalLoad) {
     StepOptions o;
     o.precision = precision;
     o.dt = 0.01;
-    o.record_joint_forces = true;
+    o.record_motion = true;
     Simulator sim(model, 1, o);
     sim.set_state(0, Eigen::VectorXd::Constant(1, theta), Eigen::VectorXd::Constant(1, w));
     sim.step();
@@ -200,7 +200,7 @@ TEST(JointForces, AFreeJointTransmitsItsFeedforwardForceOnly) {
     o.precision = Precision::Double;
     o.dt = 0.005;
     o.implicit_gyroscopic = implicit;
-    o.record_joint_forces = true;
+    o.record_motion = true;
     Simulator sim(model, 1, o);
     sim.set_gravity(0, Eigen::Vector3d::Zero());
     sim.set_state(0, model.neutral_configuration(), v);
@@ -219,6 +219,46 @@ TEST(JointForces, AFreeJointTransmitsItsFeedforwardForceOnly) {
   }
 }
 
+// A link's acceleration: a free box in free fall reads g at its COM (its
+// link origin) however it spins; the second rod of a swinging chain has its
+// origin at the first rod's end, r from the pivot: alpha x r - w^2 r, with
+// alpha the step's acceleration of the first joint, and the chain's
+// angular acceleration about y.
+TEST(LinkAccelerations, AFallingBoxReadsGravityAndARodsEndMovesOnItsCircle) {
+  StepOptions o;
+  o.precision = Precision::Double;
+  o.record_motion = true;
+  const Model box = single_body(ShapeType::Box, Eigen::Vector3d(0.1, 0.2, 0.3), 1.0);
+  Simulator fall(box, 1, o);
+  Eigen::VectorXd v(6);
+  v << 0.3, -0.2, 0.1, 0.05, 5, 0.05;
+  fall.set_state(0, box.neutral_configuration(), v);
+  EXPECT_TRUE(fall.link_accelerations(0).isZero(0));  // no step yet
+  for (int i = 0; i < 50; ++i) {
+    fall.step();
+    const Eigen::Vector3d a = fall.link_accelerations(0).col(0).head<3>();
+    ASSERT_LE((a - box.gravity).norm(), 1e-12) << "step " << i << ": " << a.transpose();
+  }
+
+  const double theta = 0.7, w = 3.0, l = 0.5;
+  const Model chain = rod_chain({2.0, 1.0}, l);
+  Simulator swing(chain, 1, o);
+  const Eigen::VectorXd q0 = Eigen::Vector2d(theta, -0.4), v0 = Eigen::Vector2d(w, 1.0);
+  swing.set_state(0, q0, v0);
+  swing.step();
+  const double alpha = CopyDynamics(chain).forward_dynamics(q0, v0, Eigen::Vector2d::Zero())[0];
+  const Eigen::Vector3d y = Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d r = Eigen::AngleAxisd(theta, y) * Eigen::Vector3d(0, 0, -l);
+  const Eigen::Vector3d expected = alpha * y.cross(r) - w * w * r;
+  const Forces acc = swing.link_accelerations(0);
+  const int end = chain.frame_index("link1");
+  EXPECT_LE((acc.col(end).head<3>() - expected).norm(), 1e-10 * expected.norm()) << acc.col(end).transpose();
+  EXPECT_NEAR(acc.col(chain.frame_index("link0"))[4], alpha, 1e-10 * std::abs(alpha));
+
+  Simulator plain(chain, 1);
+  EXPECT_THROW(plain.link_accelerations(0), std::logic_error);
+}
+
 // anymal_b standing still: its hips hold up the base (their forces on the
 // legs sum to the base's weight), and the floating base's Free joint
 // transmits nothing.
@@ -228,7 +268,7 @@ TEST(JointForces, AStandingQuadrupedsHipsCarryItsBase) {
   StepOptions o;
   o.precision = Precision::Double;
   o.contacts.ground = true;
-  o.record_joint_forces = true;
+  o.record_motion = true;
   Simulator sim(model, 1, o, scene.dofs);
   sim.set_state(0, scene.q0, Eigen::VectorXd::Zero(model.nv));
   sim.set_drive_target(0, scene.q_target, Eigen::VectorXd::Zero(model.nv));
@@ -251,7 +291,7 @@ TEST(JointForces, AStandingQuadrupedsHipsCarryItsBase) {
 TEST(JointForces, ZeroWithoutAStepAndCarriedBySnapshots) {
   const Model model = rod_chain({1.0, 0.5}, 0.3);
   StepOptions o;
-  o.record_joint_forces = true;
+  o.record_motion = true;
   o.reset_on_fault = true;
   Simulator sim(model, 2, o);
   EXPECT_TRUE(sim.incoming_joint_forces(0).isZero(0));
@@ -291,7 +331,7 @@ TEST(JointForces, TheSameBitsInEveryLaneAndForTheLastPipelineRun) {
     o.dt = dt;
     o.substeps = substeps;
     o.contacts.ground = true;
-    o.record_joint_forces = true;
+    o.record_motion = true;
     Simulator sim(model, 19, o, scene.dofs);
     Eigen::VectorXd q = scene.q0;
     q[2] += 0.02;

@@ -59,6 +59,7 @@ std::vector<Operation<L>> operations(const Model& m) {
   return {
       {"frame_poses", 12 * nframe, [](const D& d, const S& s, A& o) { d.frame_poses(s, o); }},
       {"frame_velocities", 6 * nframe, [](const D& d, const S& s, A& o) { d.frame_velocities(s, o); }},
+      {"frame_accelerations", 6 * nframe, [](const D& d, const S& s, A& o) { d.frame_accelerations(s, o); }},
       {"forward_dynamics", m.nv, [](const D& d, const S& s, A& o) { d.forward_dynamics(s, o); }},
       {"inverse_dynamics", m.nv, [](const D& d, const S& s, A& o) { d.inverse_dynamics(s, o); }},
       {"bias_force", m.nv, [](const D& d, const S& s, A& o) { d.bias_force(s, o); }},
