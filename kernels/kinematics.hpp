@@ -4,6 +4,9 @@
 
 #include "kernels/kernel_model.hpp"
 
+#include <tuple>
+#include <utility>
+
 namespace lockstep {
 
 // Rotation of a quaternion (w, x, y, z) of any non-zero norm, as if normalised:
@@ -126,6 +129,25 @@ void body_velocities(const KernelModel<lane::scalar_t<L>>& km, const lane::scala
   }
 }
 
+// Six values per frame into frame_out, [linear; angular]: f(body, p) for a
+// frame on a moving body (p: the frame's origin in the body's coordinates)
+// returns the pair in world axes; a frame on the world gets zeros.
+template <class L, class F>
+void write_frame_vectors(const KernelModel<lane::scalar_t<L>>& km, lane::scalar_t<L>* frame_out, F&& f) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  for (int frame = 0; frame < km.nframe; ++frame) {
+    const int body = km.frame_body[frame];
+    Vec3<L> linear = {L(T(0)), L(T(0)), L(T(0))}, angular = linear;
+    if (body >= 0) {
+      const T* placement = &km.frame_placement[12 * frame];
+      std::tie(linear, angular) = f(body, Vec3<L>{L(placement[9]), L(placement[10]), L(placement[11])});
+    }
+    const L e[6] = {linear.x, linear.y, linear.z, angular.x, angular.y, angular.z};
+    for (int k = 0; k < 6; ++k) lane::store(e[k], frame_out + (6 * frame + k) * W);
+  }
+}
+
 // Spatial velocity of every frame (URDF link), world axes, 6 values per
 // frame: [v; w], v the velocity of the frame's origin and w the angular
 // velocity (the rows of point_jacobian at the origin: the same as
@@ -135,22 +157,11 @@ void body_velocities(const KernelModel<lane::scalar_t<L>>& km, const lane::scala
 template <class L>
 void frame_velocities(const KernelModel<lane::scalar_t<L>>& km, const Workspace<L>& ws,
                       lane::scalar_t<L>* frame_out) {
-  using T = lane::scalar_t<L>;
-  constexpr std::size_t W = lane::width_v<L>;
-  for (int f = 0; f < km.nframe; ++f) {
-    const int body = km.frame_body[f];
-    T* out = frame_out + 6 * f * W;
-    Vec3<L> v = {L(T(0)), L(T(0)), L(T(0))}, w = v;
-    if (body >= 0) {
-      const T* placement = &km.frame_placement[12 * f];
-      const Vec3<L> origin = {L(placement[9]), L(placement[10]), L(placement[11])};
-      const Vec3<L> w_body = ws.velocity[body].ang();
-      v = spatial::rotate(ws.world[body].R, spatial::add(ws.velocity[body].lin(), spatial::cross(w_body, origin)));
-      w = spatial::rotate(ws.world[body].R, w_body);
-    }
-    const L e[6] = {v.x, v.y, v.z, w.x, w.y, w.z};
-    for (int k = 0; k < 6; ++k) lane::store(e[k], out + k * W);
-  }
+  write_frame_vectors<L>(km, frame_out, [&](int body, const Vec3<L>& p) {
+    const Vec3<L> w = ws.velocity[body].ang();
+    const Vec3<L> v = spatial::add(ws.velocity[body].lin(), spatial::cross(w, p));
+    return std::pair{spatial::rotate(ws.world[body].R, v), spatial::rotate(ws.world[body].R, w)};
+  });
 }
 
 // Spatial velocity and acceleration of every body in its own coordinates,
@@ -194,25 +205,14 @@ void body_accelerations(const KernelModel<lane::scalar_t<L>>& km, const lane::sc
 template <class L>
 void frame_accelerations(const KernelModel<lane::scalar_t<L>>& km, const Workspace<L>& ws,
                          lane::scalar_t<L>* frame_out) {
-  using T = lane::scalar_t<L>;
-  constexpr std::size_t W = lane::width_v<L>;
-  for (int f = 0; f < km.nframe; ++f) {
-    const int body = km.frame_body[f];
-    T* out = frame_out + 6 * f * W;
-    Vec3<L> a = {L(T(0)), L(T(0)), L(T(0))}, alpha = a;
-    if (body >= 0) {
-      const T* placement = &km.frame_placement[12 * f];
-      const Vec3<L> p = {L(placement[9]), L(placement[10]), L(placement[11])};
-      const Vec3<L> w = ws.velocity[body].ang(), v = ws.velocity[body].lin();
-      const Vec3<L> alpha_b = ws.accel[body].ang();
-      const Vec3<L> origin = spatial::add(ws.accel[body].lin(), spatial::cross(w, v));
-      const Vec3<L> turn = spatial::add(spatial::cross(alpha_b, p), spatial::cross(w, spatial::cross(w, p)));
-      a = spatial::rotate(ws.world[body].R, spatial::add(origin, turn));
-      alpha = spatial::rotate(ws.world[body].R, alpha_b);
-    }
-    const L e[6] = {a.x, a.y, a.z, alpha.x, alpha.y, alpha.z};
-    for (int k = 0; k < 6; ++k) lane::store(e[k], out + k * W);
-  }
+  write_frame_vectors<L>(km, frame_out, [&](int body, const Vec3<L>& p) {
+    const Vec3<L> w = ws.velocity[body].ang(), v = ws.velocity[body].lin();
+    const Vec3<L> alpha = ws.accel[body].ang();
+    const Vec3<L> origin = spatial::add(ws.accel[body].lin(), spatial::cross(w, v));
+    const Vec3<L> turn = spatial::add(spatial::cross(alpha, p), spatial::cross(w, spatial::cross(w, p)));
+    return std::pair{spatial::rotate(ws.world[body].R, spatial::add(origin, turn)),
+                     spatial::rotate(ws.world[body].R, alpha)};
+  });
 }
 
 }  // namespace lockstep
