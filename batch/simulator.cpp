@@ -33,7 +33,7 @@ std::size_t StepBatch<T>::bytes_per_copy() const {
                                  &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
                                  &contact_dropped, &contact_overflow_steps, &momentum_remainder, &motion_q, &motion_v,
-                                 &motion_acceleration, &motion_gyroscopic, &motion_recorded})
+                                 &motion_acceleration, &motion_unbalanced, &motion_recorded})
     values += static_cast<std::size_t>(a->size());
   return values * sizeof(T);
 }
@@ -293,6 +293,18 @@ StageDecision decide(Stage stage, StageMode mode, int count, const std::string& 
 }
 
 }  // namespace
+
+// The bulk readouts' arrays for every copy, kept from their first call.
+struct Simulator::MotionScratch {
+  MotionScratch(const Model& model, int copies)
+      : dynamics(model), state(dynamics.make_state(copies)), poses(dynamics.make_array(copies, 12 * model.nbody)),
+        forces(dynamics.make_array(copies, 6 * model.nbody)),
+        frames(dynamics.make_array(copies, 6 * static_cast<int>(model.frame_name.size()))) {}
+  BatchDynamics<lane::simd<double>> dynamics;
+  BatchState<double> state;
+  BatchArray<double> poses, forces, frames;
+  std::vector<char> recorded;
+};
 
 Simulator::Simulator(const Model& model, int copies, const StepOptions& options, std::vector<DofSettings> dofs,
                      HeaderBuild caller)
@@ -619,7 +631,7 @@ auto applied_torque_report(Batch& b) {
 // without StepOptions::record_motion).
 template <class Batch>
 auto joint_force_motion(Batch& b) {
-  return std::array{&b.motion_q, &b.motion_v, &b.motion_acceleration, &b.motion_gyroscopic, &b.motion_recorded};
+  return std::array{&b.motion_q, &b.motion_v, &b.motion_acceleration, &b.motion_unbalanced, &b.motion_recorded};
 }
 
 template <class Arrays>
@@ -927,66 +939,134 @@ AppliedTorque Simulator::applied_torque(int copy) const {
   });
 }
 
-bool Simulator::recorded_motion(int copy, const char* function, BatchState<double>& one) const {
-  check_copy(copy, function);
+template <class Dynamics>
+void Simulator::load_motions(int first, const Dynamics& dynamics, bool forces, const char* function,
+                             BatchState<double>& s, BatchArray<double>& poses, std::vector<char>& recorded) const {
   if (!options_.record_motion)
     throw std::logic_error(std::string("Simulator::") + function + " needs StepOptions::record_motion");
-  // The run's motion, and the copy's gravity, inertias and wrenches as the
-  // step takes them (batch/step_engine.hpp: the model's inertias and no
-  // wrenches where their stages are skipped), in double.
-  const auto runs = [&](Stage stage) { return plan()[static_cast<int>(stage)].runs; };
-  return visit([&](auto& b) {
-    one.q.set(0, b.motion_q.get(copy));
-    one.v.set(0, b.motion_v.get(copy));
-    one.qacc.set(0, b.motion_acceleration.get(copy));
-    one.gravity.set(0, b.state.gravity.get(copy));
-    if (runs(Stage::PerCopyInertia)) one.inertia.set(0, b.state.inertia.get(copy));
-    if (runs(Stage::ExternalWrenches)) one.wrench.set(0, b.state.wrench.get(copy));
-    return b.motion_recorded.at(copy, 0) != 0;
+  const int count = s.copies(), nbody = model_->nbody;
+  // The runs' motions, and for the forces the copies' gravity, inertias and
+  // wrenches as the step takes them (batch/step_engine.hpp: the model's
+  // inertias and no wrenches where their stages are skipped), in double.
+  const bool own_inertia = plan()[static_cast<int>(Stage::PerCopyInertia)].runs;
+  const bool wrenches = plan()[static_cast<int>(Stage::ExternalWrenches)].runs;
+  recorded.assign(count, 0);
+  visit([&](auto& b) {
+    auto load = [&](const auto& from, BatchArray<double>& to, int i) {  // lane by lane: no at()'s divisions
+      const auto* in = from.lane(first + i);
+      double* out = to.lane(i);
+      for (int k = 0; k < from.size(); ++k) out[k * to.width()] = static_cast<double>(in[k * from.width()]);
+    };
+    for (int i = 0; i < count; ++i) {
+      recorded[i] = b.motion_recorded.at(first + i, 0) != 0;
+      if (!recorded[i]) continue;  // no motion: its row is zero whatever s holds
+      load(b.motion_q, s.q, i);
+      load(b.motion_v, s.v, i);
+      load(b.motion_acceleration, s.qacc, i);
+      if (!forces) continue;  // the kinematics need no more
+      load(b.state.gravity, s.gravity, i);
+      if (own_inertia) load(b.state.inertia, s.inertia, i);
+      else s.inertia.set(i, model_inertia_);
+      if (wrenches) load(b.state.wrench, s.wrench, i);
+      else s.wrench.fill(i, 0);
+      // the step's forces balance the motion without its unbalanced share
+      const auto* unbalanced = b.motion_unbalanced.lane(first + i);
+      double* qacc = s.qacc.lane(i);
+      for (int k = 0; k < model_->nv; ++k)
+        qacc[k * s.qacc.width()] -= static_cast<double>(unbalanced[k * b.motion_unbalanced.width()]);
+    }
+  });
+  if (!forces || !contacts_found()) return;
+  // The contact forces join the link wrenches, their torque taken about
+  // each body's COM at the start of the step (where the contact points are).
+  dynamics.body_poses(s, poses);
+  constexpr int kParams = BatchState<double>::kInertiaParams;
+  for (int i = 0; i < count; ++i) {
+    if (!recorded[i]) continue;
+    const Eigen::Matrix<double, 6, Eigen::Dynamic> contact = body_contact_wrenches(first + i);
+    for (int b = 0; b < nbody; ++b) {
+      Eigen::Matrix3d R;
+      for (int k = 0; k < 9; ++k) R(k / 3, k % 3) = poses.at(i, 12 * b + k);
+      const Eigen::Vector3d origin(poses.at(i, 12 * b + 9), poses.at(i, 12 * b + 10), poses.at(i, 12 * b + 11));
+      const Eigen::Vector3d com_local(s.inertia.at(i, kParams * b + 1), s.inertia.at(i, kParams * b + 2),
+                                      s.inertia.at(i, kParams * b + 3));
+      const Eigen::Vector3d force = contact.col(b).head<3>();
+      const Eigen::Vector3d torque = contact.col(b).tail<3>() - (origin + R * com_local).cross(force);
+      for (int k = 0; k < 3; ++k) {
+        s.wrench.at(i, 6 * b + k) += force[k];
+        s.wrench.at(i, 6 * b + 3 + k) += torque[k];
+      }
+    }
+  }
+}
+
+namespace {
+
+// values' copies into out's rows, zero where no motion was recorded.
+void write_rows(const BatchArray<double>& values, const std::vector<char>& recorded, Eigen::Ref<RowMatrix> out) {
+  for (Eigen::Index i = 0; i < out.rows(); ++i) {
+    const double* in = values.lane(static_cast<int>(i));
+    for (Eigen::Index k = 0; k < out.cols(); ++k) out(i, k) = recorded[i] ? in[k * values.width()] : 0.0;
+  }
+}
+
+void require_shape(const Eigen::Ref<RowMatrix>& out, int rows, int cols, const char* function) {
+  require(out.rows() == rows && out.cols() == cols, [&] {
+    return std::string(function) + ": out must be " + std::to_string(rows) + " x " + std::to_string(cols) + ", got " +
+           std::to_string(out.rows()) + " x " + std::to_string(out.cols());
   });
 }
 
-Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::link_accelerations(int copy) const {
-  const int frames = static_cast<int>(model_->frame_name.size());
+}  // namespace
+
+template <class Compute>
+Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::copy_readout(int copy, int columns, bool forces,
+                                                                 const char* function, Compute&& compute) const {
+  check_copy(copy, function);
   const BatchDynamics<double> dynamics(*model_);
-  BatchState<double> one = dynamics.make_state(1);
-  if (!recorded_motion(copy, "link_accelerations", one)) return Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, frames);
-  BatchArray<double> out = dynamics.make_array(1, 6 * frames);
-  dynamics.frame_accelerations(one, out);
-  const Eigen::VectorXd flat = out.get(0);
-  return Eigen::Map<const Eigen::Matrix<double, 6, Eigen::Dynamic>>(flat.data(), 6, frames);
+  BatchState<double> s = dynamics.make_state(1);
+  BatchArray<double> poses = dynamics.make_array(1, 12 * model_->nbody), values = dynamics.make_array(1, 6 * columns);
+  std::vector<char> recorded;
+  load_motions(copy, dynamics, forces, function, s, poses, recorded);
+  compute(dynamics, s, values);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> out(6, columns);
+  write_rows(values, recorded, Eigen::Map<RowMatrix>(out.data(), 1, 6 * columns));
+  return out;
+}
+
+Simulator::MotionScratch& Simulator::motion_scratch() const {
+  if (!motion_scratch_) motion_scratch_ = std::make_unique<MotionScratch>(*model_, copies());
+  return *motion_scratch_;
 }
 
 Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::incoming_joint_forces(int copy) const {
-  const int nbody = model_->nbody;
-  Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, nbody);
-  const BatchDynamics<double> dynamics(*model_);
-  BatchState<double> one = dynamics.make_state(1);
-  if (!recorded_motion(copy, "incoming_joint_forces", one)) return out;
-  // the step's forces balance the motion without the implicit gyroscopic
-  // share (RNEA takes the velocity product at v0, as the step's ABA does)
-  visit([&](auto& b) { one.qacc.set(0, one.qacc.get(0) - b.motion_gyroscopic.get(copy)); });
-  // The contact forces join the link wrenches, their torque taken about
-  // each body's COM at the start of the step (where the contact points are).
-  const Eigen::Matrix<double, 6, Eigen::Dynamic> contact = body_contact_wrenches(copy);
-  BatchArray<double> poses = dynamics.make_array(1, 12 * nbody);
-  dynamics.body_poses(one, poses);
-  const Eigen::VectorXd pose = poses.get(0), inertia = one.inertia.get(0);
-  Eigen::VectorXd wrench = one.wrench.get(0);
-  constexpr int kParams = BatchState<double>::kInertiaParams;
-  for (int b = 0; b < nbody; ++b) {
-    const Eigen::Matrix3d R = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(pose.data() + 12 * b);
-    const Eigen::Vector3d com = pose.segment<3>(12 * b + 9) + R * inertia.segment<3>(kParams * b + 1);
-    const Eigen::Vector3d force = contact.col(b).head<3>();
-    wrench.segment<3>(6 * b) += force;
-    wrench.segment<3>(6 * b + 3) += contact.col(b).tail<3>() - com.cross(force);
-  }
-  one.wrench.set(0, wrench);
-  BatchArray<double> forces = dynamics.make_array(1, 6 * nbody);
-  dynamics.transmitted_joint_forces(one, forces);
-  const Eigen::VectorXd flat = forces.get(0);
-  out = Eigen::Map<const Eigen::Matrix<double, 6, Eigen::Dynamic>>(flat.data(), 6, nbody);
-  return out;
+  return copy_readout(copy, model_->nbody, true, "incoming_joint_forces",
+                      [](const auto& d, const BatchState<double>& s, BatchArray<double>& o) {
+                        d.transmitted_joint_forces(s, o);
+                      });
+}
+
+Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::link_accelerations(int copy) const {
+  return copy_readout(copy, static_cast<int>(model_->frame_name.size()), false, "link_accelerations",
+                      [](const auto& d, const BatchState<double>& s, BatchArray<double>& o) {
+                        d.frame_accelerations(s, o);
+                      });
+}
+
+void Simulator::all_incoming_joint_forces(Eigen::Ref<RowMatrix> out) const {
+  require_shape(out, copies(), 6 * model_->nbody, "all_incoming_joint_forces");
+  MotionScratch& m = motion_scratch();
+  load_motions(0, m.dynamics, true, "all_incoming_joint_forces", m.state, m.poses, m.recorded);
+  m.dynamics.transmitted_joint_forces(m.state, m.forces);
+  write_rows(m.forces, m.recorded, out);
+}
+
+void Simulator::all_link_accelerations(Eigen::Ref<RowMatrix> out) const {
+  require_shape(out, copies(), 6 * static_cast<int>(model_->frame_name.size()), "all_link_accelerations");
+  MotionScratch& m = motion_scratch();
+  load_motions(0, m.dynamics, false, "all_link_accelerations", m.state, m.poses, m.recorded);
+  m.dynamics.frame_accelerations(m.state, m.frames);
+  write_rows(m.frames, m.recorded, out);
 }
 
 void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction) {

@@ -29,6 +29,9 @@ namespace lockstep {
 
 struct StepPlan;
 
+// A row per copy (VecEnv's buffers, the simulator's bulk readouts).
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
 // Everything kept per copy, structure-of-arrays, in precision T. The state
 // and the inputs a user writes between steps, the per-copy parameters, the
 // solver's warm start and the fault flags.
@@ -80,11 +83,12 @@ struct StepBatch {
   // link_accelerations find theirs: the run's start state (nq, nv); its
   // acceleration (nv: (v1 - v0) / h, a Free joint's linear part the spatial
   // acceleration, the frame's turn rate w0 x v0 taken out); of that, the
-  // Free joints' share from the implicit gyroscopic force (nv, zero on the
-  // other DOFs), which RNEA's balance of the step's forces leaves out; and
+  // Free joints' share that the step's forces do not balance (nv, zero on
+  // the other DOFs): the implicit gyroscopic force's and the momentum
+  // projection's correction, which RNEA's balance leaves out; and
   // 1 where a run was recorded since the copy's last reset or set_state,
   // else 0. Empty otherwise.
-  BatchArray<T> motion_q, motion_v, motion_acceleration, motion_gyroscopic, motion_recorded;
+  BatchArray<T> motion_q, motion_v, motion_acceleration, motion_unbalanced, motion_recorded;
   // Contacts (empty without them): the ground plane n . x = d as (n, d) and
   // its friction; per contact slot the point's candidate number (-1: none,
   // and the slot's other entries are then unspecified; a copy's contacts
@@ -142,7 +146,7 @@ struct CopySnapshot {
   // applied_torque()'s four sources of the last step (empty without
   // StepOptions::record_applied_torque)
   Eigen::VectorXd applied_torque;
-  // StepBatch's motion_q, motion_v, motion_acceleration, motion_gyroscopic
+  // StepBatch's motion_q, motion_v, motion_acceleration, motion_unbalanced
   // and motion_recorded
   // (empty without StepOptions::record_motion)
   Eigen::VectorXd joint_force_motion;
@@ -286,6 +290,14 @@ class Simulator {
   // From the same motion as incoming_joint_forces, with the same caveats;
   // PhysX's link acceleration, there at the COM.
   Eigen::Matrix<double, 6, Eigen::Dynamic> link_accelerations(int copy) const;
+  // Both for every copy at once: row c of `out` (copies() rows; 6 nbody,
+  // or 6 nframe, columns) is copy c's matrix, its columns one after the
+  // other. The same numbers as the per-copy calls, found over blocks of
+  // copies in parallel (SIMD lanes, double). The first call makes the
+  // arrays all copies' motions are loaded into, and they are kept: call
+  // these from one thread at a time.
+  void all_incoming_joint_forces(Eigen::Ref<RowMatrix> out) const;
+  void all_link_accelerations(Eigen::Ref<RowMatrix> out) const;
 
   // Contacts. The candidate shape pairs after filtering (and notes on
   // shapes left out); the ground of one copy (plane through (0, 0, height)
@@ -335,11 +347,26 @@ class Simulator {
   StepPlan step_plan() const;
   std::string rows_summary() const;
   void check_copy(int copy, const char* function) const;  // throws std::out_of_range naming the function
-  // The copy's last recorded motion into `one` (a one-copy double state),
-  // with its gravity, and its inertias and wrenches as the step took them;
-  // false where no step was recorded since its reset. Throws without
-  // StepOptions::record_motion, naming `function`.
-  bool recorded_motion(int copy, const char* function, BatchState<double>& one) const;
+  // Copies [first, first + s.copies()) of the last recorded motion into the
+  // double state s (its copy i is copy first + i), with their gravity, and
+  // their inertias and wrenches as the step took them; with `forces` as
+  // the joint forces take it: the motion without its unbalanced share, and
+  // each copy's contact forces joined to its wrenches (about the bodies'
+  // COMs, from `poses` found with `dynamics`). recorded[i]: whether copy
+  // first + i has a step recorded since its reset (s's copy i is left as it
+  // was where not). Throws without StepOptions::record_motion, naming
+  // `function`.
+  template <class Dynamics>
+  void load_motions(int first, const Dynamics& dynamics, bool forces, const char* function, BatchState<double>& s,
+                    BatchArray<double>& poses, std::vector<char>& recorded) const;
+  // One copy's readout, `columns` columns: compute(dynamics, state, values)
+  // on its loaded motion; zero without a recorded step.
+  template <class Compute>
+  Eigen::Matrix<double, 6, Eigen::Dynamic> copy_readout(int copy, int columns, bool forces, const char* function,
+                                                        Compute&& compute) const;
+  // The bulk readouts' arrays, made on their first call and kept.
+  struct MotionScratch;
+  MotionScratch& motion_scratch() const;
   void check_velocity(const Eigen::VectorXd& v, const char* what) const;
   void check_per_dof(const Eigen::VectorXd& values, const char* what) const;  // nv finite values >= 0
   void check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const;
@@ -391,6 +418,7 @@ class Simulator {
   JointParameters joint_parameters_;  // scene_joint_parameters
   Eigen::VectorXd configuration_;  // set_state's normalised q, kept so that a reset allocates nothing
   std::unique_ptr<Engine> engine_;
+  mutable std::unique_ptr<MotionScratch> motion_scratch_;
   // The engine's batch, in the precision it runs (the other is null): the
   // per-copy accessors reach it without a cast.
   StepBatch<float>* float_batch_ = nullptr;

@@ -133,7 +133,7 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     *a = BatchArray<T>(copies, options.record_applied_torque ? nv : 0, kWidth);
   const bool motion = options.record_motion;
   batch_.motion_q = BatchArray<T>(copies, motion ? model.nq : 0, kWidth);
-  for (BatchArray<T>* a : {&batch_.motion_v, &batch_.motion_acceleration, &batch_.motion_gyroscopic})
+  for (BatchArray<T>* a : {&batch_.motion_v, &batch_.motion_acceleration, &batch_.motion_unbalanced})
     *a = BatchArray<T>(copies, motion ? nv : 0, kWidth);
   batch_.motion_recorded = BatchArray<T>(copies, motion ? 1 : 0, kWidth);
   const JointParameters scene = scene_joint_parameters(model, dofs);
@@ -454,7 +454,7 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
     record_motion(block, h, s);
   }
   if (options_.record_applied_torque) record_applied(block, h, first_run, s);
-  if (!floating_roots_.empty()) keep_linear_momentum(block, q_next, s);
+  if (!floating_roots_.empty()) keep_linear_momentum(block, q_next, h, s);
 
   // Faults: a copy with non-finite inputs or state is flagged; with
   // reset_on_fault it restarts from its initial state.
@@ -1076,7 +1076,7 @@ void StepEngine<L>::record_motion(int block, T h, Scratch& s) {
     lane::store(s.u0[k], v_out + k * W);
     lane::store((s.u1[k] - s.u0[k]) * inv_h, acceleration + k * W);
   }
-  T* gyroscopic = batch_.motion_gyroscopic.block(block);
+  T* gyroscopic = batch_.motion_unbalanced.block(block);
   for (int k = 0; k < km_.nv; ++k) lane::store(L(T(0)), gyroscopic + k * W);
   if (options_.integrator != Integrator::RK4) {
     add_frame_turn_rate<L>(km_, v_out, fields(s.qacc), T(0), T(-1), acceleration);

@@ -194,9 +194,11 @@ class StepEngine final : public Simulator::Engine {
   void record_motion(int block, T h, Scratch& s);
   // StepOptions::conserve_linear_momentum (batch/step_momentum.cpp): the
   // target from the start of the step, before the Free joints' velocities
-  // turn to the end frame; then the bases' velocities corrected at q1.
+  // turn to the end frame; then the bases' velocities corrected at q1 (and,
+  // with record_motion, the recorded motion with them).
   void linear_momentum_target(int block, T h, Scratch& s);
-  void keep_linear_momentum(int block, const T* q1, Scratch& s);
+  void keep_linear_momentum(int block, const T* q1, T h, Scratch& s);
+  void record_momentum_correction(int block, int root, const Vec3<L>& world_dv, T h);
 
   StepOptions options_;
   StepPlan plan_;

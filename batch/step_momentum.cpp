@@ -80,7 +80,7 @@ void StepEngine<L>::linear_momentum_target(int block, T h, Scratch& s) {
 }
 
 template <class L>
-void StepEngine<L>::keep_linear_momentum(int block, const T* q1, Scratch& s) {
+void StepEngine<L>::keep_linear_momentum(int block, const T* q1, T h, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
   const T* inertia = this->inertia(block);
   // P_target - P(q1, v): the difference of the large parts first
@@ -90,21 +90,40 @@ void StepEngine<L>::keep_linear_momentum(int block, const T* q1, Scratch& s) {
   joint_transforms<L>(km_, q1, s.ws);
   subtree_momentum<L>(km_, inertia, fields(s.u1), s.ws);
   for (int root : floating_roots_) {
-    const Vec3<L> change = shortfall(root);
-    const Vec3<L> dv = spatial::rotate_back(s.ws.local[root].R, spatial::scale(L(T(1)) / s.articulation_mass[root], change));
+    const Vec3<L> world_dv = spatial::scale(L(T(1)) / s.articulation_mass[root], shortfall(root));
+    const Vec3<L> dv = spatial::rotate_back(s.ws.local[root].R, world_dv);
     const int dof0 = km_.body_dof_offset[root];
     s.u1[dof0] = s.u1[dof0] + dv.x;
     s.u1[dof0 + 1] = s.u1[dof0 + 1] + dv.y;
     s.u1[dof0 + 2] = s.u1[dof0 + 2] + dv.z;
+    if (options_.record_motion) record_momentum_correction(block, root, world_dv, h);
   }
   subtree_momentum<L>(km_, inertia, fields(s.u1), s.ws);
   T* remainder = batch_.momentum_remainder.block(block);
   for (std::size_t i = 0; i < floating_roots_.size(); ++i) store_vec3(shortfall(floating_roots_[i]), remainder + 3 * i * W);
 }
 
+// The base's velocity change from the correction, world_dv, is part of
+// the step's motion (a translation of the whole articulation) that the
+// step's forces do not balance: world_dv / h joins the recorded
+// acceleration, in the base's frame at the start of the step like the rest
+// of it, and its unbalanced share.
+template <class L>
+void StepEngine<L>::record_momentum_correction(int block, int root, const Vec3<L>& world_dv, T h) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const T* q0 = batch_.state.q.block(block) + (km_.body_q_offset[root] + 3) * W;  // the base's quaternion (w, x, y, z)
+  const Mat3<L> R0 = quaternion_rotation(lane::load<L>(q0), lane::load<L>(q0 + W), lane::load<L>(q0 + 2 * W),
+                                         lane::load<L>(q0 + 3 * W));
+  const Vec3<L> da = spatial::rotate_back(R0, spatial::scale(L(T(1) / h), world_dv));
+  const int dof0 = km_.body_dof_offset[root];
+  for (T* a : {batch_.motion_acceleration.block(block), batch_.motion_unbalanced.block(block)})
+    store_vec3(spatial::add(load_vec3<L>(a + dof0 * W), da), a + dof0 * W);
+}
+
 #define LOCKSTEP_STEP_MOMENTUM(L)                                                    \
   template void StepEngine<L>::linear_momentum_target(int, lane::scalar_t<L>, Scratch&); \
-  template void StepEngine<L>::keep_linear_momentum(int, const lane::scalar_t<L>*, Scratch&);
+  template void StepEngine<L>::keep_linear_momentum(int, const lane::scalar_t<L>*, lane::scalar_t<L>, Scratch&); \
+  template void StepEngine<L>::record_momentum_correction(int, int, const Vec3<L>&, lane::scalar_t<L>);
 LOCKSTEP_STEP_MOMENTUM(float)
 LOCKSTEP_STEP_MOMENTUM(double)
 LOCKSTEP_STEP_MOMENTUM(lane::simd<float>)

@@ -33,8 +33,6 @@
 
 namespace lockstep {
 
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-
 // What an action sets, for each DOF that is not a floating root's (the
 // actuated DOFs, low-level order): its feedforward torque, or its drive's
 // position target (velocity target 0). A Spherical joint's three values are
