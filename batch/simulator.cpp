@@ -627,10 +627,10 @@ auto applied_torque_report(Batch& b) {
   return std::array{&b.applied_drive, &b.applied_passive, &b.applied_friction, &b.applied_limits};
 }
 
-// incoming_joint_forces()'s motion of a copy's last step (empty arrays
-// without StepOptions::record_motion).
+// The motion of a copy's last step that incoming_joint_forces() and
+// link_accelerations() read (empty arrays without StepOptions::record_motion).
 template <class Batch>
-auto joint_force_motion(Batch& b) {
+auto recorded_motion(Batch& b) {
   return std::array{&b.motion_q, &b.motion_v, &b.motion_acceleration, &b.motion_unbalanced, &b.motion_recorded};
 }
 
@@ -676,7 +676,7 @@ CopySnapshot Simulator::snapshot(int copy) const {
                         pack(copy_parameters(b), copy),
                         pack(contact_report(b), copy),
                         pack(applied_torque_report(b), copy),
-                        pack(joint_force_motion(b), copy),
+                        pack(recorded_motion(b), copy),
                         scene_key_};
   });
 }
@@ -695,15 +695,15 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
             "restore: the snapshot's contact report does not match this simulator's scene");
     require(s.applied_torque.size() == packed_size(applied_torque_report(b)),
             "restore: the snapshot's applied torques do not match this simulator's record_applied_torque");
-    require(s.joint_force_motion.size() == packed_size(joint_force_motion(b)),
-            "restore: the snapshot's joint-force motion does not match this simulator's record_motion");
+    require(s.recorded_motion.size() == packed_size(recorded_motion(b)),
+            "restore: the snapshot's recorded motion does not match this simulator's record_motion");
     require(s.scene_key == 0 || s.scene_key == scene_key_,
             "restore: the snapshot was taken from another scene (its model's joints or links, its joint rows "
             "or its contact pairs differ from this simulator's)");
     unpack(s.parameters, copy, copy_parameters(b));
     unpack(s.contact_report, copy, contact_report(b));
     unpack(s.applied_torque, copy, applied_torque_report(b));
-    unpack(s.joint_force_motion, copy, joint_force_motion(b));
+    unpack(s.recorded_motion, copy, recorded_motion(b));
     b.state.q.set(copy, s.q);
     b.state.v.set(copy, s.v);
     b.impulse.set(copy, s.joint_impulse);

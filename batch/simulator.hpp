@@ -147,9 +147,8 @@ struct CopySnapshot {
   // StepOptions::record_applied_torque)
   Eigen::VectorXd applied_torque;
   // StepBatch's motion_q, motion_v, motion_acceleration, motion_unbalanced
-  // and motion_recorded
-  // (empty without StepOptions::record_motion)
-  Eigen::VectorXd joint_force_motion;
+  // and motion_recorded (empty without StepOptions::record_motion)
+  Eigen::VectorXd recorded_motion;
   // Simulator::scene_key() of the simulator it came from: restore refuses a
   // snapshot of another scene whose arrays happen to have the same sizes.
   // 0 (a snapshot put together by hand) is not checked.

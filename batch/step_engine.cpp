@@ -1060,9 +1060,10 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
 // frame at the start of the step: begin_block added h times the turn rate
 // w0 x v0 to the spatial acceleration, which is taken out here, and with
 // it the implicit gyroscopic force's part (linearised about the free
-// acceleration in s.qacc), which is kept apart: the motion's acceleration
-// holds it, while RNEA, which takes the velocity product at v0, balances
-// the step's forces without it.
+// acceleration in s.qacc), which is kept apart as unbalanced: the motion's
+// acceleration holds it, while RNEA, which takes the velocity product at
+// v0, balances the step's forces without it. (The momentum projection's
+// correction joins both later: record_momentum_correction.)
 template <class L>
 void StepEngine<L>::record_motion(int block, T h, Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
@@ -1076,11 +1077,11 @@ void StepEngine<L>::record_motion(int block, T h, Scratch& s) {
     lane::store(s.u0[k], v_out + k * W);
     lane::store((s.u1[k] - s.u0[k]) * inv_h, acceleration + k * W);
   }
-  T* gyroscopic = batch_.motion_unbalanced.block(block);
-  for (int k = 0; k < km_.nv; ++k) lane::store(L(T(0)), gyroscopic + k * W);
+  T* unbalanced = batch_.motion_unbalanced.block(block);
+  for (int k = 0; k < km_.nv; ++k) lane::store(L(T(0)), unbalanced + k * W);
   if (options_.integrator != Integrator::RK4) {
     add_frame_turn_rate<L>(km_, v_out, fields(s.qacc), T(0), T(-1), acceleration);
-    add_frame_turn_rate<L>(km_, v_out, fields(s.qacc), gyroscopic_weight(h), T(1), gyroscopic, TurnPart::Implicit);
+    add_frame_turn_rate<L>(km_, v_out, fields(s.qacc), gyroscopic_weight(h), T(1), unbalanced, TurnPart::Implicit);
   }
   lane::store(L(T(1)), batch_.motion_recorded.block(block));
 }
