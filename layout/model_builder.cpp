@@ -156,8 +156,7 @@ void ModelBuilder::check_joint(const ArticulationSpec& spec, const LinkSpec& lin
     throw ModelError(ctx + ": floating joint inside the tree is not supported (only the root may float)");
   check_pose(j.origin, ctx, "origin");
   if (!j.axis.allFinite()) throw ModelError(ctx + ": axis has a non-finite component");
-  // stableNorm: neither 1e200 (whose norm overflows) nor 1e-200 is zero
-  if (is_one_dof(j.type) && j.axis.stableNorm() == 0.0) throw ModelError(ctx + ": zero axis");
+  if (is_one_dof(j.type) && j.axis.cwiseAbs().maxCoeff() == 0.0) throw ModelError(ctx + ": zero axis");
   if (is_one_dof(j.type) && j.limited) {
     if (!std::isfinite(j.lower) || !std::isfinite(j.upper))
       throw ModelError(ctx + ": position limits must be finite numbers");
@@ -409,7 +408,9 @@ Model ModelBuilder::finalize() const {
       } else if (is_moving(j.type)) {
         ftype = j.type;
         Eigen::Matrix3d ra = Eigen::Matrix3d::Identity();
-        if (is_one_dof(j.type)) ra = rotation_z_to(j.axis.stableNormalized());
+        // scaled by its largest entry first: the norm of (1e200, 0, 0) or
+        // (1.7e308, 1.7e308, 0) overflows, that of 1e-200 underflows
+        if (is_one_dof(j.type)) ra = rotation_z_to((j.axis / j.axis.cwiseAbs().maxCoeff()).normalized());
         const Eigen::Isometry3d at = m.frame_placement[pf] * j.origin * pure_rotation(ra);
         body = new_body(j.type, j.name, m.frame_body[pf], at);
         placement = pure_rotation(ra.transpose());

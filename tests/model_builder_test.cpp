@@ -545,13 +545,15 @@ TEST(ModelBuilder, FloatingRootTakesOnlyItsJointName) {
 }
 
 // Axes whose norm overflows or underflows in plain arithmetic: 1e200 became
-// the zero vector and the joint turned about -z.
+// the zero vector and the joint turned about -z (so did (1.7e308, 1.7e308,
+// 0), whose norm overflows even computed stably).
 TEST(ModelBuilder, HugeAndTinyAxesKeepTheirDirection) {
-  for (double scale : {1e200, 1e-200}) {
+  for (double scale : {1e200, 1.7e308, 1e-200, 4.9e-324}) {
     ArticulationSpec s = sample();
-    s.links[1].joint.axis = Eigen::Vector3d(scale, 0, 0);
+    s.links[1].joint.axis = Eigen::Vector3d(scale, scale, 0);
     const Model m = build(s);
-    expect_near(m.body_placement[0].linear() * Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX());
+    expect_near(m.body_placement[0].linear() * Eigen::Vector3d::UnitZ(), Eigen::Vector3d(1, 1, 0).normalized(),
+                1e-15);
   }
 }
 
