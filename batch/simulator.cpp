@@ -944,7 +944,7 @@ void Simulator::load_motions(int first, const Dynamics& dynamics, bool forces, c
                              BatchState<double>& s, BatchArray<double>& poses, std::vector<char>& recorded) const {
   if (!options_.record_motion)
     throw std::logic_error(std::string("Simulator::") + function + " needs StepOptions::record_motion");
-  const int count = s.copies(), nbody = model_->nbody;
+  const int count = s.copies();
   // The runs' motions, and for the forces the copies' gravity, inertias and
   // wrenches as the step takes them (batch/step_engine.hpp: the model's
   // inertias and no wrenches where their stages are skipped), in double.
@@ -983,20 +983,24 @@ void Simulator::load_motions(int first, const Dynamics& dynamics, bool forces, c
   constexpr int kParams = BatchState<double>::kInertiaParams;
   for (int i = 0; i < count; ++i) {
     if (!recorded[i]) continue;
-    const Eigen::Matrix<double, 6, Eigen::Dynamic> contact = body_contact_wrenches(first + i);
-    for (int b = 0; b < nbody; ++b) {
+    auto add = [&](const Contact& c, int body, double sign) {  // on B, and the opposite on A
+      if (body < 0) return;
       Eigen::Matrix3d R;
-      for (int k = 0; k < 9; ++k) R(k / 3, k % 3) = poses.at(i, 12 * b + k);
-      const Eigen::Vector3d origin(poses.at(i, 12 * b + 9), poses.at(i, 12 * b + 10), poses.at(i, 12 * b + 11));
-      const Eigen::Vector3d com_local(s.inertia.at(i, kParams * b + 1), s.inertia.at(i, kParams * b + 2),
-                                      s.inertia.at(i, kParams * b + 3));
-      const Eigen::Vector3d force = contact.col(b).head<3>();
-      const Eigen::Vector3d torque = contact.col(b).tail<3>() - (origin + R * com_local).cross(force);
+      for (int k = 0; k < 9; ++k) R(k / 3, k % 3) = poses.at(i, 12 * body + k);
+      const Eigen::Vector3d origin(poses.at(i, 12 * body + 9), poses.at(i, 12 * body + 10), poses.at(i, 12 * body + 11));
+      const Eigen::Vector3d com = origin + R * Eigen::Vector3d(s.inertia.at(i, kParams * body + 1),
+                                                                s.inertia.at(i, kParams * body + 2),
+                                                                s.inertia.at(i, kParams * body + 3));
+      const Eigen::Vector3d torque = (c.point - com).cross(c.force) + c.torsion * c.normal;
       for (int k = 0; k < 3; ++k) {
-        s.wrench.at(i, 6 * b + k) += force[k];
-        s.wrench.at(i, 6 * b + 3 + k) += torque[k];
+        s.wrench.at(i, 6 * body + k) += sign * c.force[k];
+        s.wrench.at(i, 6 * body + 3 + k) += sign * torque[k];
       }
-    }
+    };
+    visit_contacts(first + i, [&](const Contact& c) {
+      add(c, c.body_b, 1.0);
+      add(c, c.body_a, -1.0);
+    });
   }
 }
 

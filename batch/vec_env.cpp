@@ -48,13 +48,15 @@ const char* action_mode_name(ActionMode mode) {
   return mode == ActionMode::Torque ? "torque" : "position_target";
 }
 
-Observations::Observations(int copies, const Model& model, bool contacts)
+Observations::Observations(int copies, const Model& model, bool contacts, bool motion)
     : q(RowMatrix::Zero(copies, model.nq)), qd(RowMatrix::Zero(copies, model.nv)),
       base_position(RowMatrix::Zero(copies, 3)), base_orientation(RowMatrix::Zero(copies, 4)),
       base_linear_velocity_world(RowMatrix::Zero(copies, 3)), base_angular_velocity_world(RowMatrix::Zero(copies, 3)),
       base_linear_velocity_base(RowMatrix::Zero(copies, 3)), base_angular_velocity_base(RowMatrix::Zero(copies, 3)),
       projected_gravity(RowMatrix::Zero(copies, 3)), applied_torque(RowMatrix::Zero(copies, model.nv)),
-      contact_force(RowMatrix::Zero(copies, contacts ? 3 * model.nbody : 0)) {}
+      contact_force(RowMatrix::Zero(copies, contacts ? 3 * model.nbody : 0)),
+      joint_force(RowMatrix::Zero(copies, motion ? 6 * model.nbody : 0)),
+      link_acceleration(RowMatrix::Zero(copies, motion ? 6 * static_cast<int>(model.frame_name.size()) : 0)) {}
 
 VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuild caller)
     : header_check_(caller),
@@ -76,8 +78,9 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
                   model.dof_name[k] + " (DOF " + std::to_string(k) + ") has " +
                   std::to_string(options_.dofs[k].drive_stiffness));
   contacts_ = sim_.plan()[static_cast<int>(Stage::Contacts)].runs;
-  observations_ = Observations(copies, model, contacts_);
-  terminal_ = Observations(copies, model, contacts_);
+  const bool motion = options_.step.record_motion;
+  observations_ = Observations(copies, model, contacts_, motion);
+  terminal_ = Observations(copies, model, contacts_, motion);
   reward_out_ = Eigen::VectorXd::Zero(copies);
   reward_actions_ = RowMatrix::Zero(copies, action_size());
   terminated_.assign(copies, 0);
@@ -324,7 +327,8 @@ template <class O>
 auto observation_fields(O& o) {
   return std::array{&o.q, &o.qd, &o.base_position, &o.base_orientation, &o.base_linear_velocity_world,
                     &o.base_angular_velocity_world, &o.base_linear_velocity_base, &o.base_angular_velocity_base,
-                    &o.projected_gravity, &o.applied_torque, &o.contact_force};
+                    &o.projected_gravity, &o.applied_torque, &o.contact_force, &o.joint_force,
+                    &o.link_acceleration};
 }
 
 // Asks for the cache lines of rows [first, first + count) of every
@@ -408,18 +412,37 @@ void VecEnv::observe_block(const Batch& b, int block, Observations& o) const {
 }
 
 void VecEnv::observe(const std::vector<int>* which, Observations& o) const {
+  const bool motion = o.joint_force.cols() > 0;
   visit_batch([&](const auto& b) {
     const int W = b.state.q.width();
     if (which) {  // the blocks holding these copies (the others' rows are refreshed unchanged)
       int last = -1;
       for (int c : *which)
         if (c / W != last) observe_block(b, last = c / W, o);
+      // the readouts of these copies: zero where a reset left no step behind
+      // (without the per-copy call's allocations, so that an auto-reset
+      // allocates nothing), a restored one's own
+      if (motion)
+        for (int c : *which) {
+          if (b.motion_recorded.at(c, 0) == 0) {
+            o.joint_force.row(c).setZero();
+            o.link_acceleration.row(c).setZero();
+            continue;
+          }
+          const Eigen::Matrix<double, 6, Eigen::Dynamic> f = sim_.incoming_joint_forces(c);
+          const Eigen::Matrix<double, 6, Eigen::Dynamic> a = sim_.link_accelerations(c);
+          o.joint_force.row(c) = Eigen::Map<const Eigen::RowVectorXd>(f.data(), f.size());
+          o.link_acceleration.row(c) = Eigen::Map<const Eigen::RowVectorXd>(a.data(), a.size());
+        }
       return;
     }
     tbb::parallel_for(tbb::blocked_range<int>(0, b.state.q.blocks()), [&](const tbb::blocked_range<int>& range) {
       for (int block = range.begin(); block < range.end(); ++block) observe_block(b, block, o);
     });
   });
+  if (which || !motion) return;
+  sim_.all_incoming_joint_forces(o.joint_force);
+  sim_.all_link_accelerations(o.link_acceleration);
 }
 
 Fault VecEnv::fault(int copy) const {

@@ -76,8 +76,15 @@ struct Observations {
   RowMatrix projected_gravity;              // (N x 3) unit gravity direction in base axes
   RowMatrix applied_torque;                 // (N x nv) joint torque of the last simulator step, all sources (RaiSim's)
   RowMatrix contact_force;                  // (N x 3 nbody) net contact force on each body, world [N]; no columns without contacts
+  // With StepOptions::record_motion (else no columns), of the env step's
+  // last simulator step: each joint's force on its body, [force; torque
+  // about the joint origin] per body (Simulator::incoming_joint_forces), and
+  // each link's [acceleration of its origin; angular acceleration] per
+  // frame (Simulator::link_accelerations), world axes.
+  RowMatrix joint_force;                    // (N x 6 nbody)
+  RowMatrix link_acceleration;              // (N x 6 nframe)
   Observations() = default;
-  Observations(int copies, const Model& model, bool contacts);
+  Observations(int copies, const Model& model, bool contacts, bool motion);
 };
 
 // The user's reward and termination, called once per step() after the

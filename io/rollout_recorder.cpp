@@ -13,13 +13,16 @@ namespace lockstep {
 
 namespace {
 
-enum Dataset : int { kQ, kQd, kActions, kAppliedTorque, kReward, kTerminated, kTruncated, kFaulted, kContactForce };
+// The datasets every file has, in file order; after them the optional ones
+// (rollout_step_datasets).
+enum Dataset : int { kQ, kQd, kActions, kAppliedTorque, kReward, kTerminated, kTruncated, kFaulted, kOptional };
 
 ElementType state_type(const VecEnv& env) {
   return env.options().step.precision == Precision::Float ? ElementType::Float32 : ElementType::Float64;
 }
 
 bool has_contacts(const VecEnv& env) { return env.observations().contact_force.cols() > 0; }
+bool has_motion(const VecEnv& env) { return env.observations().joint_force.cols() > 0; }
 
 // Column names of q: a joint's name, or name[x] ... for multi-entry joints.
 std::vector<std::string> q_names(const Model& m) {
@@ -91,6 +94,7 @@ std::vector<Attribute> run_attributes(const VecEnv& env, const RolloutInfo& info
       {"dof_names", m.dof_name},
       {"action_names", action_names},
       {"body_names", body_names(m)},
+      {"link_names", m.frame_name},
       {"randomization.randomize_ground_friction", static_cast<std::int64_t>(o.randomization.randomize_ground_friction)},
   };
   for (const RandomizationField& f : randomization_fields()) {
@@ -142,6 +146,12 @@ std::vector<StepDataset> rollout_step_datasets(const VecEnv& env) {
   };
   if (has_contacts(env))
     d.push_back({"contact_force", state, {n, std::size_t(m.nbody), 3}, "net contact force on each body, world [N]"});
+  if (has_motion(env)) {
+    d.push_back({"joint_force", state, {n, std::size_t(m.nbody), 6},
+                 "each joint's force on its body, world: force [N], torque about the joint origin [N m]"});
+    d.push_back({"link_acceleration", state, {n, m.frame_name.size(), 6},
+                 "each link's origin acceleration [m/s^2] and angular acceleration [rad/s^2], world"});
+  }
   return d;
 }
 
@@ -181,7 +191,12 @@ void RolloutRecorder::record(const RowMatrix& actions) {
   put(kQ, now.q, terminal.q);
   put(kQd, now.qd, terminal.qd);
   put(kAppliedTorque, now.applied_torque, terminal.applied_torque);
-  if (now.contact_force.cols() > 0) put(kContactForce, now.contact_force, terminal.contact_force);
+  int optional = kOptional;  // rollout_step_datasets' order
+  if (now.contact_force.cols() > 0) put(optional++, now.contact_force, terminal.contact_force);
+  if (now.joint_force.cols() > 0) {
+    put(optional++, now.joint_force, terminal.joint_force);
+    put(optional++, now.link_acceleration, terminal.link_acceleration);
+  }
   convert(actions.data(), actions.size(), writer_->frame_as<double>(kActions));
   std::copy(env_.reward().data(), env_.reward().data() + env_.copies(), writer_->frame_as<double>(kReward));
   std::copy(env_.terminated().begin(), env_.terminated().end(), writer_->frame_as<std::uint8_t>(kTerminated));

@@ -475,7 +475,7 @@ void read_step(const json::Value& v, const At& at, StepOptions& s) {
   const Object o(v, at,
                  {"dt", "substeps", "solver", "iterations", "integrator", "precision", "lanes", "error_reduction",
                   "warm_start", "implicit_gyroscopic", "conserve_linear_momentum", "reset_on_fault",
-                  "record_applied_torque"});
+                  "record_applied_torque", "record_motion"});
   set_number(o, "dt", s.dt, Bound::Positive);
   set_int(o, "substeps", s.substeps, 1);
   set_token(o, "solver", s.solver, kSolvers);
@@ -489,6 +489,7 @@ void read_step(const json::Value& v, const At& at, StepOptions& s) {
   set_bool(o, "conserve_linear_momentum", s.conserve_linear_momentum);
   set_bool(o, "reset_on_fault", s.reset_on_fault);
   set_bool(o, "record_applied_torque", s.record_applied_torque);
+  set_bool(o, "record_motion", s.record_motion);
 }
 
 // A number below 2^53, or a string of decimal digits for any 64-bit seed.
@@ -898,7 +899,8 @@ json::Value step_value(const StepOptions& s) {
                        {"implicit_gyroscopic", bool_value(s.implicit_gyroscopic)},
                        {"conserve_linear_momentum", bool_value(s.conserve_linear_momentum)},
                        {"reset_on_fault", bool_value(s.reset_on_fault)},
-                       {"record_applied_torque", bool_value(s.record_applied_torque)}});
+                       {"record_applied_torque", bool_value(s.record_applied_torque)},
+                       {"record_motion", bool_value(s.record_motion)}});
 }
 
 json::Value env_value(const VecEnvOptions& env) {

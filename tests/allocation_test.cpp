@@ -278,6 +278,7 @@ TEST(Allocations, VecEnvStepAllocatesNothingWithOrWithoutResets) {
       tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, threads);
       VecEnvOptions o;
       o.step.contacts.ground = true;
+      o.step.record_motion = episode > 0;  // the joint forces and link accelerations observed too
       o.dofs = scene.dofs;
       o.action_mode = ActionMode::PositionTarget;
       o.initial_q = scene.q0;

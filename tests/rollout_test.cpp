@@ -295,6 +295,55 @@ TEST(Rollout, SaysReplacingOnlyWhenItReplacesTheFile) {
   EXPECT_TRUE(RolloutReader(file).complete());
 }
 
+// With record_motion the file holds the joint forces and link
+// accelerations, as the environment observed them (terminal rows where an
+// episode ended), with the links' names.
+TEST(Rollout, RecordsTheJointForcesAndLinkAccelerations) {
+  const TempDir dir;
+  const std::string file = (dir.path / "motion.h5").string();
+  Scene scene = short_episode_scene();
+  scene.env.step.record_motion = true;
+  const int envs = 3, steps = 9;
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+  VecEnv env(scene.model, envs, scene.env);
+  env.reset();
+  RolloutRecorder recorder(env, file, {scene_to_json(scene), scene.model_path, "random", {}});
+  cli::Policy policy(cli::PolicyKind::Random, env, scene.env.seed);
+  RowMatrix actions;
+  std::vector<RowMatrix> forces, accelerations;
+  for (int t = 0; t < steps; ++t) {
+    policy.act(env, t, actions);
+    env.step(actions);
+    recorder.record(actions);
+    RowMatrix f = env.observations().joint_force, a = env.observations().link_acceleration;
+    for (int c = 0; c < envs; ++c)
+      if (env.truncated()[c] || env.terminated()[c]) {
+        f.row(c) = env.terminal_observations().joint_force.row(c);
+        a.row(c) = env.terminal_observations().link_acceleration.row(c);
+      }
+    forces.push_back(f);
+    accelerations.push_back(a);
+  }
+  recorder.close();
+  const RolloutReader r(file);
+  const Model& m = scene.model;
+  const std::size_t T = steps, n = envs, frames = m.frame_name.size();
+  ASSERT_EQ(r.shape("joint_force"), (std::vector<std::size_t>{T, n, std::size_t(m.nbody), 6}));
+  ASSERT_EQ(r.shape("link_acceleration"), (std::vector<std::size_t>{T, n, frames, 6}));
+  EXPECT_EQ(std::get<std::vector<std::string>>(r.attribute("link_names")), m.frame_name);
+  const std::vector<double> stored_forces = r.read("joint_force"), stored_accelerations = r.read("link_acceleration");
+  for (std::size_t t = 0; t < T; ++t)
+    for (int c = 0; c < envs; ++c)
+      for (int k = 0; k < forces[t].cols(); ++k)
+        ASSERT_EQ(stored_forces[(t * n + c) * forces[t].cols() + k], static_cast<float>(forces[t](c, k)))
+            << "step " << t << ", copy " << c;
+  for (std::size_t t = 0; t < T; ++t)
+    for (int c = 0; c < envs; ++c)
+      for (int k = 0; k < accelerations[t].cols(); ++k)
+        ASSERT_EQ(stored_accelerations[(t * n + c) * accelerations[t].cols() + k],
+                  static_cast<float>(accelerations[t](c, k)));
+}
+
 // The file after an interrupted rollout opens, holds at least `seen` steps,
 // all finite, and does not claim to be complete.
 void expect_readable_incomplete(const std::string& file, std::int64_t seen) {

@@ -92,6 +92,7 @@ void expect_same_step(const StepOptions& a, const StepOptions& b) {
   EXPECT_EQ(a.implicit_gyroscopic, b.implicit_gyroscopic);
   EXPECT_EQ(a.reset_on_fault, b.reset_on_fault);
   EXPECT_EQ(a.record_applied_torque, b.record_applied_torque);
+  EXPECT_EQ(a.record_motion, b.record_motion);
   EXPECT_EQ(a.stages, b.stages);
   expect_same_contacts(a.contacts, b.contacts);
 }
@@ -195,7 +196,7 @@ std::string full_scene(const std::string& model) {
   "step": {
     "dt": 0.001, "substeps": 2, "solver": "tgs", "iterations": 8, "integrator": "trapezoid", "precision": "double",
     "lanes": "scalar", "error_reduction": 0.3, "warm_start": 0.5, "implicit_gyroscopic": false,
-    "reset_on_fault": true, "record_applied_torque": true
+    "reset_on_fault": true, "record_applied_torque": true, "record_motion": true
   },
   "env": {"action_mode": "position_target", "control_steps": 4, "episode_steps": 1000, "auto_reset": false, "seed": 7},
   "randomization": )" + all_randomization_ranges() + R"(
@@ -344,6 +345,7 @@ TEST_F(SceneFile, EveryKeyLandsInItsField) {
   EXPECT_FALSE(e.step.implicit_gyroscopic);
   EXPECT_TRUE(e.step.reset_on_fault);
   EXPECT_TRUE(e.step.record_applied_torque);
+  EXPECT_TRUE(e.step.record_motion);
   EXPECT_EQ(e.action_mode, ActionMode::PositionTarget);
   EXPECT_EQ(e.control_steps, 4);
   EXPECT_EQ(e.episode_steps, 1000);

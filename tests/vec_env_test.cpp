@@ -107,6 +107,43 @@ TEST(VecEnv, ObservationsDescribeTheSimulatorState) {
   }
 }
 
+// With record_motion the observations hold the step's joint forces and link
+// accelerations, the simulator's own bit for bit (the bulk readouts); a
+// copy that ended keeps its last step's in the terminal observation and
+// starts its new episode with zeros (no step yet). Without it, no columns.
+TEST(VecEnv, ObservesTheStepsJointForcesAndLinkAccelerations) {
+  VecEnvOptions options = standing_options(anymal());
+  EXPECT_EQ(VecEnv(anymal(), 2, options).observations().joint_force.cols(), 0);
+  options.step.record_motion = true;
+  options.episode_steps = 3;
+  VecEnv env(anymal(), 5, options);
+  env.reset();
+  const int frames = static_cast<int>(anymal().frame_name.size());
+  ASSERT_EQ(env.observations().joint_force.cols(), 6 * anymal().nbody);
+  ASSERT_EQ(env.observations().link_acceleration.cols(), 6 * frames);
+  EXPECT_TRUE(env.observations().joint_force.isZero(0));
+  RowMatrix last_forces;
+  for (int t = 0; t < 3; ++t) {
+    last_forces = env.observations().joint_force;
+    env.step(wave_actions(env, iota(5), t));
+  }
+  const Observations &o = env.observations(), &terminal = env.terminal_observations();
+  for (int c = 0; c < 5; ++c) {
+    EXPECT_TRUE(env.truncated()[c]);
+    EXPECT_TRUE(o.joint_force.row(c).isZero(0)) << "reset: no step of the new episode yet";
+    EXPECT_TRUE(o.link_acceleration.row(c).isZero(0));
+    EXPECT_GT(terminal.joint_force.row(c).norm(), 10.0) << "the ended episode's last step";
+  }
+  env.step(wave_actions(env, iota(5), 3));
+  const Simulator& sim = env.simulator();
+  for (int c = 0; c < 5; ++c) {
+    const Eigen::Matrix<double, 6, Eigen::Dynamic> f = sim.incoming_joint_forces(c), a = sim.link_accelerations(c);
+    EXPECT_TRUE(same_bits(o.joint_force.row(c).transpose(), Eigen::Map<const Eigen::VectorXd>(f.data(), f.size())));
+    EXPECT_TRUE(
+        same_bits(o.link_acceleration.row(c).transpose(), Eigen::Map<const Eigen::VectorXd>(a.data(), a.size())));
+  }
+}
+
 // Standing under the drives, the ground carries the robot: the feet's
 // contact forces add up to its weight (the copy's own mass and gravity).
 TEST(VecEnv, ContactForcesCarryTheWeightOfAStandingRobot) {
