@@ -39,7 +39,10 @@ Eigen::VectorXd along_joint_axes(const Model& model, const std::vector<Eigen::Is
 // The recorded acceleration of the copy's last step times its armature, in
 // double: the rotor's share of the joint torque.
 Eigen::VectorXd rotor_torque(const Simulator& sim, int copy) {
-  auto of = [&](const auto& b) { return b.armature.get(copy).cwiseProduct(b.motion_acceleration.get(copy)); };
+  // a vector, not an expression over the two temporaries it multiplies
+  auto of = [&](const auto& b) -> Eigen::VectorXd {
+    return b.armature.get(copy).cwiseProduct(b.motion_acceleration.get(copy));
+  };
   return sim.options().precision == Precision::Float ? of(sim.batch<float>()) : of(sim.batch<double>());
 }
 
