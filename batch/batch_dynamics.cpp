@@ -92,7 +92,12 @@ void BatchDynamics<L>::frame_accelerations(const BatchState<Scalar>& s, BatchArr
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
     world_transforms<L>(km_, ws);
-    body_accelerations<L>(km_, s.v.block(b), s.qacc.block(b), ws);
+    // RNEA's forward pass leaves the bodies' velocities and accelerations;
+    // without gravity and wrenches, the motion's own
+    BlockInputs<Scalar> in = block_inputs(s, b);
+    in.gravity = nullptr;
+    in.wrench = nullptr;
+    rnea<L>(km_, in, ws, nullptr);
     lockstep::frame_accelerations<L>(km_, ws, out.block(b));
   });
 }

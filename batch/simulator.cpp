@@ -983,8 +983,7 @@ void Simulator::load_motions(int first, const Dynamics& dynamics, bool forces, c
   constexpr int kParams = BatchState<double>::kInertiaParams;
   for (int i = 0; i < count; ++i) {
     if (!recorded[i]) continue;
-    auto add = [&](const Contact& c, int body, double sign) {  // on B, and the opposite on A
-      if (body < 0) return;
+    visit_body_contacts(first + i, [&](const Contact& c, int body, double sign) {
       Eigen::Matrix3d R;
       for (int k = 0; k < 9; ++k) R(k / 3, k % 3) = poses.at(i, 12 * body + k);
       const Eigen::Vector3d origin(poses.at(i, 12 * body + 9), poses.at(i, 12 * body + 10), poses.at(i, 12 * body + 11));
@@ -996,10 +995,6 @@ void Simulator::load_motions(int first, const Dynamics& dynamics, bool forces, c
         s.wrench.at(i, 6 * body + k) += sign * c.force[k];
         s.wrench.at(i, 6 * body + 3 + k) += sign * torque[k];
       }
-    };
-    visit_contacts(first + i, [&](const Contact& c) {
-      add(c, c.body_b, 1.0);
-      add(c, c.body_a, -1.0);
     });
   }
 }
@@ -1128,6 +1123,14 @@ void Simulator::visit_contacts(int copy, F&& f) const {
   });
 }
 
+template <class F>
+void Simulator::visit_body_contacts(int copy, F&& f) const {
+  visit_contacts(copy, [&](const Contact& c) {
+    if (c.body_b >= 0) f(c, c.body_b, 1.0);
+    if (c.body_a >= 0) f(c, c.body_a, -1.0);
+  });
+}
+
 std::vector<Contact> Simulator::contacts(int copy) const {
   check_copy(copy, "contacts");
   std::vector<Contact> out;
@@ -1138,21 +1141,17 @@ std::vector<Contact> Simulator::contacts(int copy) const {
 void Simulator::body_contact_forces(int copy, double* forces) const {
   check_copy(copy, "body_contact_forces");
   std::fill(forces, forces + 3 * model_->nbody, 0.0);
-  visit_contacts(copy, [&](const Contact& c) {
-    for (int i = 0; i < 3; ++i) {
-      if (c.body_b >= 0) forces[3 * c.body_b + i] += c.force[i];
-      if (c.body_a >= 0) forces[3 * c.body_a + i] -= c.force[i];
-    }
+  visit_body_contacts(copy, [&](const Contact& c, int body, double sign) {
+    for (int i = 0; i < 3; ++i) forces[3 * body + i] += sign * c.force[i];
   });
 }
 
 Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::body_contact_wrenches(int copy) const {
   check_copy(copy, "body_contact_wrenches");
   Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, model_->nbody);
-  visit_contacts(copy, [&](const Contact& c) {
+  visit_body_contacts(copy, [&](const Contact& c, int body, double sign) {
     const Eigen::Vector3d torque = c.point.cross(c.force) + c.torsion * c.normal;
-    if (c.body_b >= 0) out.col(c.body_b) += (Eigen::Matrix<double, 6, 1>() << c.force, torque).finished();
-    if (c.body_a >= 0) out.col(c.body_a) -= (Eigen::Matrix<double, 6, 1>() << c.force, torque).finished();
+    out.col(body) += sign * (Eigen::Matrix<double, 6, 1>() << c.force, torque).finished();
   });
   return out;
 }

@@ -394,6 +394,10 @@ class Simulator {
   // checks the copy).
   template <class F>
   void visit_contacts(int copy, F&& f) const;
+  // f(contact, body, sign) for each moving body a contact of the copy's last
+  // step acts on: sign 1 on B (Contact::force acts on it), -1 on A.
+  template <class F>
+  void visit_body_contacts(int copy, F&& f) const;
 
   HeaderBuildCheck header_check_;  // first: runs before any other member is built
   const Model* model_;

@@ -26,8 +26,6 @@
                                           Workspace<L>&);                                                             \
   EXTERN template void frame_velocities<L>(const KernelModel<lane::scalar_t<L>>&, const Workspace<L>&,              \
                                            lane::scalar_t<L>*);                                                       \
-  EXTERN template void body_accelerations<L>(const KernelModel<lane::scalar_t<L>>&, const lane::scalar_t<L>*,       \
-                                             const lane::scalar_t<L>*, Workspace<L>&);                                \
   EXTERN template void frame_accelerations<L>(const KernelModel<lane::scalar_t<L>>&, const Workspace<L>&,           \
                                               lane::scalar_t<L>*);                                                    \
   EXTERN template void rnea<L>(const KernelModel<lane::scalar_t<L>>&, const BlockInputs<lane::scalar_t<L>>&,        \

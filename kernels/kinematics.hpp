@@ -164,35 +164,6 @@ void frame_velocities(const KernelModel<lane::scalar_t<L>>& km, const Workspace<
   });
 }
 
-// Spatial velocity and acceleration of every body in its own coordinates,
-// without gravity: a_i = X a_parent + S qdd + v_i x S qd (RBDA eq. 5.7,
-// 5.13). Needs ws.local.
-template <class L>
-void body_accelerations(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* v,
-                        const lane::scalar_t<L>* qacc, Workspace<L>& ws) {
-  constexpr std::size_t W = lane::width_v<L>;
-  for (int b = 0; b < km.nbody; ++b) {
-    const int parent = km.body_parent[b];
-    Vec6<L> vJ, aJ;
-    for (int k = 0; k < 6; ++k) vJ.e[k] = aJ.e[k] = L(0);
-    with_motion_axes(km.body_joint[b], [&](auto S) {
-      for (int k = 0; k < S.count; ++k) {
-        const int dof = km.body_dof_offset[b] + k;
-        vJ.e[S.index[k]] = lane::load<L>(v + dof * W);
-        aJ.e[S.index[k]] = lane::load<L>(qacc + dof * W);
-      }
-    });
-    if (parent < 0) {
-      ws.velocity[b] = vJ;
-      ws.accel[b] = aJ;
-    } else {
-      ws.velocity[b] = spatial::add(spatial::motion_to_child(ws.local[b], ws.velocity[parent]), vJ);
-      ws.accel[b] = spatial::add(spatial::add(spatial::motion_to_child(ws.local[b], ws.accel[parent]), aJ),
-                                 spatial::motion_cross(ws.velocity[b], vJ));
-    }
-  }
-}
-
 // Classical acceleration of every frame's origin and its angular
 // acceleration, world axes, 6 values per frame: [a; alpha] (PhysX's link
 // acceleration, there at the COM). With the body's spatial acceleration
@@ -200,8 +171,8 @@ void body_accelerations(const KernelModel<lane::scalar_t<L>>& km, const lane::sc
 // origin's classical acceleration is a_b + w_b x v_b (RBDA section 2.11),
 // and the frame's origin at p_f moves with
 // a = R_b (a_b + w_b x v_b + alpha_b x p_f + w_b x (w_b x p_f)),
-// alpha = R_b alpha_b. Needs ws.world, ws.velocity and ws.accel
-// (body_accelerations).
+// alpha = R_b alpha_b. Needs ws.world, and ws.velocity and ws.accel as
+// RNEA's forward pass leaves them run without gravity.
 template <class L>
 void frame_accelerations(const KernelModel<lane::scalar_t<L>>& km, const Workspace<L>& ws,
                          lane::scalar_t<L>* frame_out) {
