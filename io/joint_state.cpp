@@ -45,14 +45,22 @@ int joint_body(const Model& model, const std::string& name, const std::string& w
                    " (run `lockstep info` to list the joints)");
 }
 
+// A value the arithmetic of `precision` holds: finite, and within float's
+// range for float (a double such as 1e39 is finite but not a float).
+double checked_number(double x, const std::string& where, Precision precision) {
+  if (!std::isfinite(x)) throw StateError(where + ": value is not finite");
+  if (precision == Precision::Float && std::abs(x) > std::numeric_limits<float>::max())
+    throw StateError(where + " = " + json::number(x) + " is beyond float's range");
+  return x;
+}
+
 // Reads one entry into out[offset, offset + size).
 void read_entry(const json::Value& value, const std::string& where, JointType type, Part part, int size,
-                Eigen::VectorXd& out, int offset) {
+                Precision precision, Eigen::VectorXd& out, int offset) {
   if (size == 1) {
     if (!value.is_number())
       throw StateError(where + ": expected a number, got " + json::type_name(value.type));
-    if (!std::isfinite(value.number)) throw StateError(where + ": value is not finite");
-    out[offset] = value.number;
+    out[offset] = checked_number(value.number, where, precision);
     return;
   }
   const std::string expected = "expected an array of " + std::to_string(size) + " numbers" + entry_layout(type, part);
@@ -63,8 +71,7 @@ void read_entry(const json::Value& value, const std::string& where, JointType ty
     const json::Value& item = value.array[k];
     const std::string item_where = where + "[" + std::to_string(k) + "]";
     if (!item.is_number()) throw StateError(item_where + ": expected a number, got " + json::type_name(item.type));
-    if (!std::isfinite(item.number)) throw StateError(item_where + ": value is not finite");
-    out[offset + k] = item.number;
+    out[offset + k] = checked_number(item.number, item_where, precision);
   }
   // Quaternions (w, x, y, z): Free q[3..7), Spherical q[0..4).
   if (part == Part::Q && (type == JointType::Free || type == JointType::Spherical)) {
@@ -82,15 +89,15 @@ void read_entry(const json::Value& value, const std::string& where, JointType ty
 // `entries`, an object keyed by joint name, into out's layout for `part`;
 // a key's errors are named `where.joint`.
 void read_entries(const Model& model, const json::Value& entries, const std::string& where, Part part,
-                  Eigen::VectorXd& out) {
+                  Precision precision, Eigen::VectorXd& out) {
   if (!entries.is_object())
     throw StateError(where + ": expected an object keyed by joint name, got " + json::type_name(entries.type));
   for (const auto& [name, value] : entries.object) {
     const std::string at = where + "." + name;
     const int body = joint_body(model, name, at);
     const JointType type = model.body_joint[body];
-    if (part == Part::Q) read_entry(value, at, type, part, joint_nq(type), out, model.body_q_offset[body]);
-    else read_entry(value, at, type, part, joint_nv(type), out, model.body_dof_offset[body]);
+    if (part == Part::Q) read_entry(value, at, type, part, joint_nq(type), precision, out, model.body_q_offset[body]);
+    else read_entry(value, at, type, part, joint_nv(type), precision, out, model.body_dof_offset[body]);
   }
 }
 
@@ -98,17 +105,17 @@ void read_entries(const Model& model, const json::Value& entries, const std::str
 
 Eigen::VectorXd read_configuration(const Model& model, const json::Value& entries, const std::string& where) {
   Eigen::VectorXd q = model.neutral_configuration();
-  read_entries(model, entries, where, Part::Q, q);
+  read_entries(model, entries, where, Part::Q, Precision::Double, q);
   return q;
 }
 
 Eigen::VectorXd read_velocity(const Model& model, const json::Value& entries, const std::string& where) {
   Eigen::VectorXd v = Eigen::VectorXd::Zero(model.nv);
-  read_entries(model, entries, where, Part::Qd, v);
+  read_entries(model, entries, where, Part::Qd, Precision::Double, v);
   return v;
 }
 
-JointState read_state(const Model& model, const json::Value& root, const std::string& source) {
+JointState read_state(const Model& model, const json::Value& root, const std::string& source, Precision precision) {
   JointState state;
   state.q = model.neutral_configuration();
   state.v = Eigen::VectorXd::Zero(model.nv);
@@ -124,7 +131,7 @@ JointState read_state(const Model& model, const json::Value& root, const std::st
       throw StateError(source + ": unknown key \"" + key + "\"" + did_you_mean(key, {"q", "qd", "tau"}) +
                        " (expected \"q\", \"qd\" or \"tau\")");
     Eigen::VectorXd& out = part == Part::Q ? state.q : part == Part::Qd ? state.v : state.tau;
-    read_entries(model, entries, source + ": " + part_name(part), part, out);
+    read_entries(model, entries, source + ": " + part_name(part), part, precision, out);
   }
   return state;
 }

@@ -2,6 +2,7 @@
 // `lockstep dynamics` and the initial state of a scene file (docs/cli.md).
 #pragma once
 
+#include "batch/precision.hpp"
 #include "layout/model.hpp"
 #include "io/json.hpp"
 
@@ -29,8 +30,10 @@ struct JointState {
 // or a Spherical joint (q [qw,qx,qy,qz], qd and tau 3). Joints not given are
 // at the neutral configuration with zero velocity and torque. A quaternion
 // must have unit norm within 1e-3 and is then normalised. Throws StateError
-// for unknown keys or joints, wrong types or sizes and non-finite values.
-JointState read_state(const Model& model, const json::Value& root, const std::string& source);
+// for unknown keys or joints, wrong types or sizes, non-finite values, and
+// with Precision::Float values beyond float's range.
+JointState read_state(const Model& model, const json::Value& root, const std::string& source,
+                      Precision precision = Precision::Double);
 
 // One configuration (nq) from an object keyed by joint name, in the format
 // of the state's "q": joints not given are neutral. Errors are named

@@ -5,8 +5,6 @@
 #include "io/json.hpp"
 #include "io/joint_state.hpp"
 
-#include <cmath>
-#include <limits>
 #include <ostream>
 #include <utility>
 
@@ -29,34 +27,8 @@ std::string matrix_json(const Eigen::MatrixXd& m, const std::string& indent) {
   return s + "\n" + indent + "]";
 }
 
-// The name of entry i of q (part "q") or of a DOF vector (v, tau) as the
-// state file names it: the joint, with [k] for multi-entry joints.
-std::string entry_name(const Model& model, const char* part, int i) {
-  const bool q = std::string(part) == "q";
-  for (int b = model.nbody - 1; b >= 0; --b) {
-    const int first = q ? model.body_q_offset[b] : model.body_dof_offset[b];
-    if (first > i) continue;
-    const int size = q ? joint_nq(model.body_joint[b]) : joint_nv(model.body_joint[b]);
-    const std::string index = size > 1 ? "[" + std::to_string(i - first) + "]" : "";
-    return std::string(part) + "." + model.joint_name[b] + index;
-  }
-  return std::string(part) + "[" + std::to_string(i) + "]";
-}
-
-// Inputs finite as doubles may not be in float (1e39), and finite inputs
-// may give results that are not (|qd| of 1e200 squared): either would be
-// written as null. Both are the state's fault: refused naming the file.
-void require_in_range(const Model& model, const JointState& state, Precision precision, const std::string& path) {
-  if (precision != Precision::Float) return;
-  const std::pair<const char*, const Eigen::VectorXd*> parts[] = {
-      {"q", &state.q}, {"qd", &state.v}, {"tau", &state.tau}};
-  for (const auto& [part, values] : parts)
-    for (Eigen::Index i = 0; i < values->size(); ++i)
-      if (std::abs((*values)[i]) > std::numeric_limits<float>::max())
-        throw StateError(path + ": " + entry_name(model, part, static_cast<int>(i)) + " = " +
-                         json::number((*values)[i]) + " is beyond float's range (--precision float)");
-}
-
+// Finite inputs may give results that are not (|qd| of 1e200 squared),
+// which would be written as null: refused naming the state's file.
 void require_finite(const Eigen::MatrixXd& result, const char* what, Precision precision, const std::string& path) {
   if (!result.allFinite())
     throw StateError(path + ": the state's " + what + " is not finite in " + precision_name(precision) +
@@ -75,9 +47,7 @@ int run_dynamics(const std::vector<std::string>& args, std::ostream& out) {
 
   const LoadedModel loaded = load_model(parsed.positional[0], parsed.has("--floating-base"), false);
   const Model& model = loaded.model;
-  const JointState state = read_state(model, json::parse_file(*state_path), *state_path);
-
-  require_in_range(model, state, precision, *state_path);
+  const JointState state = read_state(model, json::parse_file(*state_path), *state_path, precision);
 
   const CopyDynamics dynamics(model, precision);
   const Eigen::MatrixXd mass_matrix = dynamics.mass_matrix(state.q);
