@@ -430,7 +430,11 @@ std::string Simulator::describe_plan() const {
   out << "step: dt " << options_.dt << " s, " << options_.substeps << " substep(s), " << integrator_name(options_.integrator)
       << ", " << solver_name(options_.solver) << " x " << options_.iterations << ", " << precision_name(options_.precision)
       << (options_.lanes == Lanes::Simd ? " SIMD lanes" : " scalar lanes") << "\n";
-  out << "  kinematics and ABA with gravity: always\n";
+  out << "  kinematics and ABA with gravity: always";
+  const Model& m = *model_;
+  const auto weightless = std::count(m.body_gravity.begin(), m.body_gravity.end(), std::uint8_t(0));
+  if (weightless > 0) out << " (switched off on " << weightless << " of " << m.nbody << " bodies)";
+  out << "\n";
   for (const StageDecision& d : plan_)
     out << "  " << stage_name(d.stage) << ": " << (d.runs ? "runs" : "skipped") << " (" << d.reason << ")\n";
   const bool contacts = contacts_found();

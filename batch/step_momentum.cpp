@@ -53,13 +53,16 @@ void StepEngine<L>::linear_momentum_target(int block, T h, Scratch& s) {
     s.momentum_added[root] = spatial::rotate(s.ws.local[root].R, base_force);
   }
   const T* wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
+  const Vec3<L> gravity = load_vec3<L>(B.state.gravity.block(block));
   for (int b = 0; b < km_.nbody; ++b) {
     const int root = momentum_root_[b];
     if (root < 0) continue;
-    s.articulation_mass[root] = s.articulation_mass[root] + lane::load<L>(inertia + kInertiaParams * b * W);
+    const L mass = lane::load<L>(inertia + kInertiaParams * b * W);
+    s.articulation_mass[root] = s.articulation_mass[root] + mass;
     if (wrench) s.momentum_added[root] = spatial::add(s.momentum_added[root], load_vec3<L>(wrench + 6 * b * W));
+    // a body without gravity: its weight, added below with the rest, is not there
+    if (!km_.body_gravity[b]) s.momentum_added[root] = spatial::sub(s.momentum_added[root], spatial::scale(mass, gravity));
   }
-  const Vec3<L> gravity = load_vec3<L>(B.state.gravity.block(block));
   const T* remainder = B.momentum_remainder.block(block);
   for (std::size_t i = 0; i < floating_roots_.size(); ++i) {
     const int root = floating_roots_[i];

@@ -410,6 +410,26 @@ int link_frame(const Model& model, const std::string& name, const At& at) {
   return it->second;
 }
 
+// "links_without_gravity": links whose moving body gravity does not act on
+// (Model::body_gravity). Gravity is switched per moving body, so each name
+// must be the link a body is named after, not one fused into it.
+void read_links_without_gravity(const json::Value& v, const At& at, Model& model) {
+  expect_type(v, json::Value::Type::Array, at, "an array of link names");
+  for (std::size_t i = 0; i < v.array.size(); ++i) {
+    const At item = at.index(i);
+    const std::string& name = read_string(v.array[i], item);
+    const int frame = link_frame(model, name, item);
+    const int body = model.frame_body[frame];
+    if (body < 0) item.fail("link \"" + name + "\" is fixed to the world: gravity moves nothing there");
+    const std::string& head = model.frame_name[model.body_frame[body]];
+    if (head != name)
+      item.fail("link \"" + name + "\" is fixed to link \"" + head + "\" and moves with it as one body; name \"" +
+                head + "\" (gravity is switched per moving body)");
+    if (!model.body_gravity[body]) item.fail("link \"" + name + "\" is listed twice");
+    model.body_gravity[body] = 0;
+  }
+}
+
 // "links": surface properties of every shape declared on a URDF link.
 void read_link_surfaces(const json::Value& v, const At& at, const Model& model, ContactSettings& c) {
   expect_type(v, json::Value::Type::Object, at, "an object keyed by link name");
@@ -537,8 +557,8 @@ void read_randomization(const json::Value& v, const At& at, Randomization& r) {
 // ---- the whole file
 
 const std::vector<std::string> kTopKeys = {
-    "model",    "floating_base", "gravity", "initial_state", "drive_targets", "ground", "boxes",
-    "contacts", "drives",        "joint_dynamics", "step",   "env",           "randomization"};
+    "model",    "floating_base", "gravity", "links_without_gravity", "initial_state", "drive_targets", "ground",
+    "boxes",    "contacts",      "drives",  "joint_dynamics",        "step",          "env",           "randomization"};
 
 // The model path: relative paths from the scene file's folder.
 std::string resolve_model_path(const std::string& scene_path, const Object& root) {
@@ -610,6 +630,8 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
   Model& model = scene.model;
   VecEnvOptions& env = scene.env;
   root.with("gravity", [&](const json::Value& v, const At& at) { model.gravity = read_vector3(v, at); });
+  root.with("links_without_gravity",
+            [&](const json::Value& v, const At& at) { read_links_without_gravity(v, at, model); });
   root.with("initial_state",
             [&](const json::Value& v, const At& at) { read_initial_state(v, at, model, env, scene.value_warnings); });
   root.with("drive_targets",
@@ -987,6 +1009,10 @@ std::string scene_to_json(const Scene& scene) {
   std::vector<Member> m = {{"model", string_value(fs::absolute(scene.model_path).lexically_normal().string())},
                            {"floating_base", bool_value(scene.floating_base)},
                            {"gravity", numbers_value(model.gravity)}};
+  std::vector<json::Value> without_gravity;
+  for (int b = 0; b < model.nbody; ++b)
+    if (!model.body_gravity[b]) without_gravity.push_back(string_value(model.frame_name[model.body_frame[b]]));
+  if (!without_gravity.empty()) m.emplace_back("links_without_gravity", array_value(std::move(without_gravity)));
   if (env.initial_q.size() > 0 || env.initial_v.size() > 0)
     m.emplace_back("initial_state", initial_state_value(model, env));
   if (env.drive_target_q.size() > 0) {

@@ -158,7 +158,7 @@ LOCKSTEP_INLINE void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km,
     if (terms.implicit_gyroscopic_step() != 0)
       gyroscopic_jacobian(IA, v, terms.implicit_gyroscopic_step(), &ws.gyroscopic[ws.joint_Dinv_offset[b]]);
   Vec6<L> pA = spatial::force_cross(v, rigid_mul(I, v));
-  if (in.wrench) pA = spatial::sub(pA, body_wrench<L>(in.wrench, b, ws.world[b], I.com));
+  subtract_applied_forces<L>(km, in, b, ws.world[b], I, pA);
   add_children(km, b, ws, carry, IA, pA);
   L U[6 * N];  // column k at U + 6k
   for (int k = 0; k < N; ++k)

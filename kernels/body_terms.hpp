@@ -47,6 +47,28 @@ inline Vec6<L> body_wrench(const lane::scalar_t<L>* wrench, int body, const Tran
   return spatial::make6(f, spatial::add(spatial::rotate_back(world.R, N), spatial::cross(com, f)));
 }
 
+// The weight m g of a body, acting at its COM, as a spatial force in body
+// coordinates about the body origin (body_wrench's form).
+template <class L>
+inline Vec6<L> body_weight(const lane::scalar_t<L>* gravity, const BodyInertia<L>& I, const Transform<L>& world) {
+  constexpr std::size_t W = lane::width_v<L>;
+  const Vec3<L> g = {lane::load<L>(gravity), lane::load<L>(gravity + W), lane::load<L>(gravity + 2 * W)};
+  const Vec3<L> f = spatial::scale(I.mass, spatial::rotate_back(world.R, g));
+  return spatial::make6(f, spatial::cross(I.com, f));
+}
+
+// Takes from a body's force balance f (RNEA's I a + v x* I v, ABA's bias
+// force) what acts on it from outside the tree: the user's wrench, and on a
+// body whose gravity is switched off (KernelModel::body_gravity) the weight
+// that a0 = [-g; 0] put into I a, so that no net gravity acts on it. Needs
+// ws.world when either is there.
+template <class L>
+inline void subtract_applied_forces(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in,
+                                    int b, const Transform<L>& world, const BodyInertia<L>& I, Vec6<L>& f) {
+  if (in.wrench) f = spatial::sub(f, body_wrench<L>(in.wrench, b, world, I.com));
+  if (in.gravity && !km.body_gravity[b]) f = spatial::add(f, body_weight<L>(in.gravity, I, world));
+}
+
 // Gravity enters as a fictitious world acceleration a0 = [-g; 0] of the base
 // (RBDA sec. 5.3), which also makes the bias force include gravity.
 template <class L>

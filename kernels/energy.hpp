@@ -26,7 +26,8 @@ L kinetic_energy(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lan
   return L(lane::scalar_t<L>(0.5)) * energy;
 }
 
-// V = -sum_i m_i g . x_com,i (zero at the world origin). Needs ws.world.
+// V = -sum_i m_i g . x_com,i over the bodies gravity acts on (zero at the
+// world origin). Needs ws.world.
 template <class L>
 L potential_energy(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scalar_t<L>>& in, const Workspace<L>& ws) {
   constexpr std::size_t W = lane::width_v<L>;
@@ -34,6 +35,7 @@ L potential_energy(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<l
   const Vec3<L> g = {lane::load<L>(in.gravity), lane::load<L>(in.gravity + W), lane::load<L>(in.gravity + 2 * W)};
   L energy(0);
   for (int b = 0; b < km.nbody; ++b) {
+    if (!km.body_gravity[b]) continue;
     const BodyInertia<L> I = load_body_inertia<L>(in.inertia, b);
     const Vec3<L> com = spatial::add(ws.world[b].p, spatial::rotate(ws.world[b].R, I.com));
     energy = lane::fnmadd(I.mass, spatial::dot(g, com), energy);

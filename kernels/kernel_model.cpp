@@ -14,7 +14,9 @@ template <class T>
 KernelModel<T>::KernelModel(const Model& model)
     : nbody(model.nbody), nq(model.nq), nv(model.nv), nframe(static_cast<int>(model.frame_name.size())),
       body_parent(model.body_parent), body_joint(model.body_joint), body_q_offset(model.body_q_offset),
-      body_dof_offset(model.body_dof_offset), dof_parent(model.dof_parent), frame_body(model.frame_body) {
+      body_dof_offset(model.body_dof_offset), dof_parent(model.dof_parent), frame_body(model.frame_body),
+      body_gravity(model.body_gravity) {
+  for (std::uint8_t on : body_gravity) gravity_switched_off |= on == 0;
   for (int b = 0; b < nbody; ++b) {
     append_placement(body_placement, model.body_placement[b]);
     const Eigen::Matrix3d& I = model.body_inertia[b];

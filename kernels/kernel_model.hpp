@@ -52,6 +52,10 @@ struct KernelModel {
   std::vector<int> frame_body;        // (nframe), -1: world
   std::vector<T> frame_placement;     // (nframe x 12), in the body frame (or the world)
   std::vector<T> default_inertia;     // (nbody x kInertiaParams), the model's values
+  std::vector<std::uint8_t> body_gravity;  // (nbody) Model::body_gravity
+  // Some body has gravity switched off: the kernels that take gravity then
+  // need ws.world (body_weight), as they do for wrenches.
+  bool gravity_switched_off = false;
   std::vector<Handoff> body_handoff;           // (nbody) see Handoff
   std::vector<std::uint8_t> body_takes_carry;  // (nbody) the next body visited hands over by Carry
   std::vector<std::uint8_t> body_takes_sum;    // (nbody) some child hands over by Store / Add

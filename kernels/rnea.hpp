@@ -47,7 +47,7 @@ void rnea(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scal
     const BodyInertia<L> I = load_body_inertia<L>(in.inertia, b);
     // f = I a + v x* I v - f_ext
     Vec6<L> f = spatial::add(rigid_mul(I, a), spatial::force_cross(v, rigid_mul(I, v)));
-    if (in.wrench) f = spatial::sub(f, body_wrench<L>(in.wrench, b, ws.world[b], I.com));
+    subtract_applied_forces<L>(km, in, b, ws.world[b], I, f);
     ws.force[b] = f;
   }
   // backward pass: project on the joint axes, pass the rest to the parent

@@ -79,6 +79,9 @@ struct Model {
   std::vector<Eigen::Vector3d> body_com;          // centre of mass in the body frame
   std::vector<Eigen::Matrix3d> body_inertia;      // rotational inertia about the COM, body axes
   std::vector<std::string> joint_name;            // the inbound joint's name
+  // 1: gravity acts on the body (the default); 0: it is switched off for the
+  // body and every link fused into it (LinkSpec::gravity)
+  std::vector<std::uint8_t> body_gravity;
 
   // dofs (nv), low-level order
   std::vector<std::string> dof_name;   // joint name, or joint name + [k] for multi-DOF joints

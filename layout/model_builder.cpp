@@ -283,6 +283,20 @@ int ModelBuilder::add_articulation(const ArticulationSpec& spec_in) {
   std::vector<bool> on_world(n, false);
   on_world[0] = !spec.floating_base;
   for (int i = 1; i < n; ++i) on_world[i] = on_world[parent[i]] && spec.links[i].joint.type == JointType::Fixed;
+  // Gravity is switched per moving body: a link fused into one must agree
+  // with the link the body is named after (links fused into the world carry
+  // nothing that gravity could move).
+  std::vector<int> body_link(n, 0);
+  for (int i = 1; i < n; ++i) {
+    const LinkSpec& link = spec.links[i];
+    body_link[i] = is_moving(link.joint.type) ? i : body_link[parent[i]];
+    const LinkSpec& head = spec.links[body_link[i]];
+    if (!on_world[i] && link.gravity != head.gravity)
+      throw ModelError(link_ctx(spec, link) + ": gravity " + (link.gravity ? "on" : "off") +
+                       ", but it is fixed to link '" + head.name + "', which has gravity " +
+                       (head.gravity ? "on" : "off") +
+                       " (gravity is switched per moving body: every link fixed to it must agree)");
+  }
   for (int i = 0; i < n; ++i) {
     const LinkSpec& link = spec.links[i];
     const InertialSpec& in = link.inertial;
@@ -368,6 +382,7 @@ Model ModelBuilder::finalize() const {
         m.body_frame.push_back(f);
         m.joint_name.push_back(name);
         m.joint_by_name[name] = b;
+        m.body_gravity.push_back(link.gravity ? 1 : 0);
         const int nv = joint_nv(type);
         for (int k = 0; k < nv; ++k) {
           const std::string dname = nv == 1 ? name : name + "[" + std::to_string(k) + "]";

@@ -113,6 +113,7 @@ TEST(CliOutput, InfoJsonPrintsTheModelsStructure) {
     EXPECT_EQ(member(body, "q_offset").number, model.body_q_offset[b]);
     EXPECT_EQ(member(body, "dof_offset").number, model.body_dof_offset[b]);
     EXPECT_EQ(member(body, "mass").number, model.body_mass[b]);
+    EXPECT_EQ(member(body, "gravity").boolean, model.body_gravity[b] != 0);
   }
   const json::Value& frames = member(printed, "frames");
   ASSERT_EQ(frames.array.size(), model.frame_name.size());

@@ -155,6 +155,15 @@ TEST_P(KernelLanes, DoubleLanesMatchScalarReference) {
   expect_difference_matches_reference<double>(model);
 }
 
+// The same with gravity switched off on every second body
+// (Model::body_gravity): the weight that cancels it takes the same path.
+TEST_P(KernelLanes, LanesMatchScalarReferenceWithBodiesWithoutGravity) {
+  Model model = test::load_model_case(GetParam());
+  for (int b = 1; b < model.nbody; b += 2) model.body_gravity[b] = 0;
+  expect_lanes_match_reference<float>(model);
+  expect_lanes_match_reference<double>(model);
+}
+
 INSTANTIATE_TEST_SUITE_P(SharedModels, KernelLanes, ::testing::ValuesIn(test::all_model_cases()),
                          [](const auto& info) { return test::case_name(info.param); });
 

@@ -132,6 +132,7 @@ void expect_same_scene(const Scene& a, const Scene& b) {
   EXPECT_EQ(a.floating_base, b.floating_base);
   EXPECT_EQ(a.model.nq, b.model.nq);
   expect_bits(a.model.gravity, b.model.gravity, "gravity");
+  EXPECT_EQ(a.model.body_gravity, b.model.body_gravity);
   expect_same_step(a.env.step, b.env.step);
   ASSERT_EQ(a.env.dofs.size(), b.env.dofs.size());
   for (std::size_t k = 0; k < a.env.dofs.size(); ++k)
@@ -171,6 +172,7 @@ std::string full_scene(const std::string& model) {
   "model": )" + json_string(model) + R"(,
   "floating_base": true,
   "gravity": [0.1, 0, -9.7],
+  "links_without_gravity": ["FL_shank", "base"],
   "initial_state": {
     "q": {"quadruped_root": [0.1, 0.2, 0.4, 0, 0, 0, 1], "FL_knee": -1.1, "HR_hip_flex": 0.3},
     "qd": {"quadruped_root": [0.1, 0, 0, 0, 0, 0.2], "FL_knee": 0.3}
@@ -246,6 +248,10 @@ TEST_F(SceneFile, EveryKeyLandsInItsField) {
   EXPECT_TRUE(s.floating_base);
   ASSERT_EQ(m.body_joint[0], JointType::Free);
   EXPECT_EQ(m.gravity, Eigen::Vector3d(0.1, 0, -9.7));
+  for (int b = 0; b < m.nbody; ++b) {
+    const std::string& link = m.frame_name[m.body_frame[b]];
+    EXPECT_EQ(m.body_gravity[b], link == "FL_shank" || link == "base" ? 0 : 1) << link;
+  }
 
   // initial state: given joints set, the others neutral, at rest
   Eigen::VectorXd q0 = m.neutral_configuration();
@@ -792,6 +798,15 @@ INSTANTIATE_TEST_SUITE_P(
                  {"boxes[1].rotation: give \"rpy\" or \"rotation\", not both"}},
         BadScene{"box_not_a_rotation", R"(, "boxes": [{"rotation": [[1,0,0],[0,1,0],[0,0,-1]]}])",
                  {"boxes[0].rotation: not a rotation matrix"}},
+        BadScene{"gravity_not_an_array", R"(, "links_without_gravity": "base")",
+                 {"links_without_gravity: expected an array of link names, got string"}},
+        BadScene{"gravity_unknown_link", R"(, "links_without_gravity": ["base", "FL_shnak"])",
+                 {"links_without_gravity[1]: unknown link \"FL_shnak\" (did you mean \"FL_shank\"?)"}},
+        BadScene{"gravity_fused_link", R"(, "links_without_gravity": ["FL_foot"])",
+                 {"links_without_gravity[0]: link \"FL_foot\" is fixed to link \"FL_shank\" and moves with it as one "
+                  "body; name \"FL_shank\""}},
+        BadScene{"gravity_link_twice", R"(, "links_without_gravity": ["FL_shank", "FL_shank"])",
+                 {"links_without_gravity[1]: link \"FL_shank\" is listed twice"}},
         BadScene{"unknown_link", R"(, "contacts": {"links": {"paw": {"friction": 1}}})",
                  {"contacts.links.paw: unknown link \"paw\""}},
         BadScene{"misspelled_link", R"(, "contacts": {"links": {"FL_shnak": {"friction": 1}}})",

@@ -544,6 +544,9 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
     peer.kd = first < model.nv ? scene.env.dofs[first].drive_damping : 0.0;
     peer.targets = joint_targets(scene);
     peer.base_height = scene.floating_base ? scene.env.initial_q[2] : step_scene::kBaseHeight;
+    for (int k = 0; k < 3; ++k) peer.gravity[k] = model.gravity[k];
+    for (int b = 0; b < model.nbody; ++b)
+      if (!model.body_gravity[b]) peer.links_without_gravity.push_back(model.frame_name[model.body_frame[b]]);
     peer.ground = report.contacts && scene.env.step.contacts.ground;
     peer.friction = scene.env.step.contacts.ground_contact.friction;
     try {

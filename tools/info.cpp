@@ -81,11 +81,11 @@ void print_info_text(const LoadedModel& loaded, std::ostream& out) {
   articulations.print(out);
 
   out << "\nbodies (" << m.nbody << ", low-level order):\n";
-  Table bodies({"index", "name", "parent", "joint", "type", "q", "dof", "mass [kg]"});
+  Table bodies({"index", "name", "parent", "joint", "type", "q", "dof", "mass [kg]", "gravity"});
   for (int b = 0; b < m.nbody; ++b) {
     bodies.add({std::to_string(b), body_name(m, b), body_name(m, m.body_parent[b]), m.joint_name[b],
                 joint_type_name(m.body_joint[b]), std::to_string(m.body_q_offset[b]),
-                std::to_string(m.body_dof_offset[b]), mass_text(m.body_mass[b])});
+                std::to_string(m.body_dof_offset[b]), mass_text(m.body_mass[b]), m.body_gravity[b] ? "on" : "off"});
   }
   bodies.print(out);
 
@@ -144,7 +144,8 @@ void print_info_json(const LoadedModel& loaded, std::ostream& out) {
         << ", \"joint\": " << quote(m.joint_name[b]) << ", \"joint_type\": " << quote(joint_type_name(type))
         << ", \"q_offset\": " << m.body_q_offset[b] << ", \"nq\": " << joint_nq(type)
         << ", \"dof_offset\": " << m.body_dof_offset[b] << ", \"nv\": " << joint_nv(type)
-        << ", \"articulation\": " << m.body_articulation[b] << ", \"mass\": " << number(m.body_mass[b]) << "}";
+        << ", \"articulation\": " << m.body_articulation[b] << ", \"mass\": " << number(m.body_mass[b])
+        << ", \"gravity\": " << (m.body_gravity[b] ? "true" : "false") << "}";
   }
   out << "\n  ],\n";
 

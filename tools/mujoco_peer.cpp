@@ -432,12 +432,25 @@ std::vector<Drive> drives_of(const mjModel* m, const MujocoScene& scene) {
   return drives;
 }
 
-// The initial state: the drive targets, the floating root at base_height.
-void reset(const mjModel* m, mjData* d, const std::vector<Drive>& drives, double base_height) {
+// The MuJoCo body of a link named in links_without_gravity.
+int weightless_body(const mjModel* m, const std::string& link) {
+  const int id = mj_name2id(m, mjOBJ_BODY, link.c_str());
+  if (id <= 0) throw std::runtime_error("MuJoCo's model has no body \"" + link + "\" to switch gravity off on");
+  return id;
+}
+
+// The initial state: the drive targets, the floating root at base_height,
+// and on each link without gravity the force -m g at its COM (xfrc_applied
+// acts at the COM, in world axes, and stays until the next reset).
+void reset(const mjModel* m, mjData* d, const std::vector<Drive>& drives, const MujocoScene& scene) {
   mj_resetData(m, d);
   for (int j = 0; j < m->njnt; ++j)
-    if (m->jnt_type[j] == mjJNT_FREE) d->qpos[m->jnt_qposadr[j] + 2] = base_height;
+    if (m->jnt_type[j] == mjJNT_FREE) d->qpos[m->jnt_qposadr[j] + 2] = scene.base_height;
   for (const Drive& drive : drives) d->qpos[drive.qpos] = drive.target;
+  for (const std::string& link : scene.links_without_gravity) {
+    const int body = weightless_body(m, link);
+    for (int k = 0; k < 3; ++k) d->xfrc_applied[6 * body + k] = -m->body_mass[body] * m->opt.gravity[k];
+  }
 }
 
 // Without mju_user_warning, MuJoCo prints each warning and appends it to
@@ -523,7 +536,7 @@ double time_threads(const mjModel* m, std::vector<DataPtr>& data, const std::vec
   std::vector<std::thread> workers;
   std::vector<Sums> sums(data.size());
   for (std::size_t i = 0; i < data.size(); ++i) {
-    reset(m, data[i].get(), drives, scene.base_height);
+    reset(m, data[i].get(), drives, scene);
     workers.emplace_back([&, i] {
       ready.fetch_add(1);
       while (!go.load(std::memory_order_acquire)) std::this_thread::yield();
@@ -564,6 +577,17 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
     throw std::runtime_error("MuJoCo did not make the root a free joint");
   m->opt.timestep = scene.dt;
   if (!scene.ground) m->opt.disableflags |= mjDSBL_CONTACT;
+  for (int k = 0; k < 3; ++k) m->opt.gravity[k] = scene.gravity[k];
+  if (!scene.links_without_gravity.empty()) {
+    std::string links;
+    for (const std::string& link : scene.links_without_gravity) {
+      weightless_body(m, link);
+      links += (links.empty() ? "\"" : ", \"") + link + "\"";
+    }
+    report.notes.push_back("gravity cancelled on " + links +
+                           " by the force -m g at each one's COM through xfrc_applied (MuJoCo 2.2.2 has no per-body "
+                           "gravity switch)");
+  }
   report.nq = m->nq;
   report.nv = m->nv;
   report.nbody = m->nbody - 1;  // without the world
@@ -574,7 +598,8 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
             << " solver, at most " << m->opt.iterations << " iterations, geom margin 0, default solref and solimp)";
   else
     options << "contacts disabled (mjDSBL_CONTACT)";
-  options << ", timestep " << scene.dt << " s, integrator "
+  options << ", timestep " << scene.dt << " s, gravity (" << scene.gravity[0] << ", " << scene.gravity[1] << ", "
+          << scene.gravity[2] << ") m/s², integrator "
           << (m->opt.integrator == mjINT_EULER ? "Euler" : "not Euler") << ", " << m->nu << " actuators";
   report.notes.push_back(options.str());
   report.notes.push_back("PD kp (q_target - q) - kd v applied explicitly through qfrc_applied before every "

@@ -7,6 +7,7 @@
 
 #include <string>
 #include <utility>
+#include <array>
 #include <vector>
 
 namespace lockstep::cli {
@@ -20,6 +21,10 @@ struct MujocoScene {
   // Drive targets by URDF joint name (rad or m); joints not named hold 0.
   std::vector<std::pair<std::string, double>> targets;
   double base_height = 0.0;  // initial z of the floating root
+  std::array<double, 3> gravity{0.0, 0.0, -9.81};  // m/s², world
+  // Links gravity does not act on (Model::body_gravity): MuJoCo 2.2.2 has
+  // no such switch, so their weight is cancelled through xfrc_applied.
+  std::vector<std::string> links_without_gravity;
   // Contacts: off unless `ground`, which keeps the URDF's primitive
   // collision shapes (spheres, boxes, cylinders; mesh collisions are still
   // removed), adds a plane at z = 0 with normal +z and turns contacts on.
