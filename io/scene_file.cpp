@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <tuple>
 #include <utility>
@@ -415,6 +416,7 @@ int link_frame(const Model& model, const std::string& name, const At& at) {
 // must be the link a body is named after, not one fused into it.
 void read_links_without_gravity(const json::Value& v, const At& at, Model& model) {
   expect_type(v, json::Value::Type::Array, at, "an array of link names");
+  std::set<int> listed;
   for (std::size_t i = 0; i < v.array.size(); ++i) {
     const At item = at.index(i);
     const std::string& name = read_string(v.array[i], item);
@@ -425,8 +427,8 @@ void read_links_without_gravity(const json::Value& v, const At& at, Model& model
     if (head != name)
       item.fail("link \"" + name + "\" is fixed to link \"" + head + "\" and moves with it as one body; name \"" +
                 head + "\" (gravity is switched per moving body)");
-    if (!model.body_gravity[body]) item.fail("link \"" + name + "\" is listed twice");
-    model.body_gravity[body] = 0;
+    if (!listed.insert(body).second) item.fail("link \"" + name + "\" is listed twice");
+    model.body_gravity[body] = 0;  // the URDF's own switch may have it off already
   }
 }
 

@@ -217,6 +217,32 @@ struct RawJoint {
   std::string name, type, parent, child;
 };
 
+// Gazebo's link extension <gazebo reference="link"> with <gravity>
+// (true/false/1/0, SDF's bool) or the older <turnGravityOff>: the links it
+// switches gravity off on. A reference naming no link is an error only
+// where it carries one of these elements (Gazebo's joint extensions share
+// the tag).
+std::set<std::string> links_without_gravity(const std::string& src, const XMLElement* robot,
+                                            const std::map<std::string, XMLElement*>& links) {
+  std::set<std::string> off;
+  for (const XMLElement* g = robot->FirstChildElement("gazebo"); g; g = g->NextSiblingElement("gazebo")) {
+    const char* reference = g->Attribute("reference");
+    for (const char* tag : {"gravity", "turnGravityOff"}) {
+      const XMLElement* e = g->FirstChildElement(tag);
+      if (!e) continue;
+      const std::string where = at(src, e) + ": <" + tag + ">";
+      if (!reference) throw ModelError(where + " outside a <gazebo reference=\"link\"> element");
+      if (!links.count(reference)) throw ModelError(where + ": <gazebo reference=\"" + reference + "\"> names no link");
+      const std::string text = e->GetText() ? e->GetText() : "";
+      const bool truth = text == "true" || text == "1";
+      if (!truth && text != "false" && text != "0")
+        throw ModelError(where + ": expected true, false, 1 or 0, got '" + text + "'");
+      if (truth == (std::string(tag) == "turnGravityOff")) off.insert(reference);
+    }
+  }
+  return off;
+}
+
 }  // namespace
 
 ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std::string& src,
@@ -336,6 +362,7 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
   const urdf::ModelInterfaceSharedPtr model = parse_with_urdfdom(printer.CStr(), urdfdom_errors);
   if (!model) throw ModelError(src + ": invalid URDF: " + (urdfdom_errors.empty() ? "rejected by urdfdom" : urdfdom_errors));
 
+  const std::set<std::string> weightless = links_without_gravity(src, robot, links);
   ArticulationSpec spec;
   spec.name = options.name_prefix + robot_name;
   spec.source = src;
@@ -358,6 +385,7 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
     link.name = prefix + v.link;
     link.shapes = shapes[v.link];
     link.source_line = links.at(v.link)->GetLineNum();
+    link.gravity = !weightless.count(v.link);
     const urdf::LinkConstSharedPtr ul = model->getLink(v.link);
     if (ul && ul->inertial) {
       const urdf::Inertial& in = *ul->inertial;

@@ -3,10 +3,12 @@
 // What is read: links with their inertials (rotated inertia axes included),
 // joints (revolute, continuous = unlimited revolute, prismatic, fixed) with
 // origin, axis, limits (position, velocity, effort), dynamics (damping,
-// friction) and mimic tags, and collision geometry (box, sphere, cylinder,
-// `<capsule radius length>` and meshes, fitted with boxes). Visual elements,
-// gazebo/transmission/sensor tags and `<calibration>`/`<safety_controller>`
-// are ignored.
+// friction) and mimic tags, collision geometry (box, sphere, cylinder,
+// `<capsule radius length>` and meshes, fitted with boxes), and Gazebo's
+// per-link gravity switch (`<gazebo reference="link"><gravity>false</gravity>`
+// or `<turnGravityOff>true</turnGravityOff>`: LinkSpec::gravity). Visual
+// elements, the rest of the gazebo tags, transmission/sensor tags and
+// `<calibration>`/`<safety_controller>` are ignored.
 //
 // Conventions:
 // - The URDF is fixed-base unless UrdfOptions::floating_base; a floating

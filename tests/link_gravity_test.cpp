@@ -240,6 +240,28 @@ TEST_F(LinkGravityScene, NamedLinksLoseGravityAndTheSceneWritesThemBack) {
   EXPECT_EQ(load_scene(write(text)).model.body_gravity, m.body_gravity);
 }
 
+// A URDF's own switch (Gazebo's <gravity>) and the scene's list add up; a
+// link both name is no error, and the written scene reads back the same.
+TEST_F(LinkGravityScene, TheUrdfsSwitchAndTheScenesListAddUp) {
+  const std::string inertial =
+      R"(<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>)";
+  std::string urdf = "<robot name=\"bot\">\n<link name=\"base\">" + inertial + "</link>\n";
+  for (const char* name : {"arm", "hand"})
+    urdf += std::string("<link name=\"") + name + "\">" + inertial + "</link>\n";
+  urdf += R"(<joint name="shoulder" type="continuous"><parent link="base"/><child link="arm"/></joint>
+<joint name="wrist" type="continuous"><parent link="arm"/><child link="hand"/></joint>
+<gazebo reference="arm"><gravity>false</gravity></gazebo>
+</robot>
+)";
+  const std::string urdf_path = (dir_ / "bot.urdf").string();
+  std::ofstream(urdf_path) << urdf;
+  const Scene s = load_scene(write(scene_text(urdf_path, false, "\"hand\", \"arm\"")));
+  EXPECT_EQ(s.model.body_gravity, (std::vector<std::uint8_t>{0, 0}));
+  const Scene urdf_only = load_scene(write(scene_text(urdf_path, false, "")));
+  EXPECT_EQ(urdf_only.model.body_gravity, (std::vector<std::uint8_t>{0, 1}));
+  EXPECT_EQ(load_scene(write(scene_to_json(urdf_only))).model.body_gravity, urdf_only.model.body_gravity);
+}
+
 TEST_F(LinkGravityScene, ALinkFixedToTheWorldIsRefused) {
   const std::string root = load_shared_model("panda", false).frame_name[0];
   EXPECT_THROW_WITH(load_scene(write(scene_text(shared_model_path("panda"), false, "\"" + root + "\""))), SceneError,

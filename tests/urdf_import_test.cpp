@@ -142,6 +142,43 @@ TEST(UrdfImport, ReadsRaisimJointSprings) {
   EXPECT_NEAR(sim.q(0)[0], 0.3, 1e-6);
 }
 
+// Gazebo's per-link gravity switch: <gravity> (SDF's bool) or the older
+// <turnGravityOff>; a <gazebo> element for a joint is no error.
+TEST(UrdfImport, ReadsGazebosGravitySwitch) {
+  const std::string links = link("base") + link("arm") + link("hand") + link("tool") +
+                            joint("shoulder", "continuous", "base", "arm", R"(<axis xyz="0 1 0"/>)") +
+                            joint("wrist", "continuous", "arm", "hand", R"(<axis xyz="0 1 0"/>)") +
+                            joint("flange", "fixed", "hand", "tool");
+  const ArticulationSpec spec = parse(robot(links + R"(<gazebo reference="arm"><gravity>false</gravity></gazebo>
+<gazebo reference="hand"><turnGravityOff>true</turnGravityOff></gazebo>
+<gazebo reference="tool"><turnGravityOff>true</turnGravityOff></gazebo>
+<gazebo reference="base"><gravity>1</gravity></gazebo>
+<gazebo reference="shoulder"><implicitSpringDamper>true</implicitSpringDamper></gazebo>
+)"));
+  std::vector<bool> gravity;
+  for (const LinkSpec& l : spec.links) gravity.push_back(l.gravity);
+  EXPECT_EQ(gravity, (std::vector<bool>{true, false, false, false}));
+  ModelBuilder builder;
+  builder.add_articulation(spec);
+  EXPECT_EQ(builder.finalize().body_gravity, (std::vector<std::uint8_t>{0, 0}));
+  // the tool is fixed to the hand: one body, so they must agree
+  EXPECT_MODEL_ERROR(ModelBuilder().add_articulation(parse(robot(
+                         links + R"(<gazebo reference="hand"><gravity>0</gravity></gazebo>)"))),
+                     "link 'tool'", "fixed to link 'hand', which has gravity off");
+}
+
+TEST(UrdfImportError, GazeboGravitySwitch) {
+  const auto with = [](const std::string& gazebo) {
+    return parse(robot(link("base") + link("arm") + joint("shoulder", "continuous", "base", "arm") + gazebo));
+  };
+  EXPECT_MODEL_ERROR(with(R"(<gazebo reference="arm"><gravity>off</gravity></gazebo>)"), "<gravity>",
+                     "expected true, false, 1 or 0, got 'off'");
+  EXPECT_MODEL_ERROR(with(R"(<gazebo reference="elbow"><gravity>false</gravity></gazebo>)"),
+                     "<gazebo reference=\"elbow\"> names no link");
+  EXPECT_MODEL_ERROR(with(R"(<gazebo><turnGravityOff>true</turnGravityOff></gazebo>)"),
+                     "<turnGravityOff> outside a <gazebo reference=\"link\"> element");
+}
+
 TEST(UrdfImport, ChildrenInFileOrderAndOptions) {
   const std::string xml = robot(link("z_root") + link("b") + link("a") + link("c") +
                                 joint("jb", "prismatic", "z_root", "b", R"(<axis xyz="0 0 1"/>)") +
