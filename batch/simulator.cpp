@@ -33,7 +33,8 @@ std::size_t StepBatch<T>::bytes_per_copy() const {
                                  &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
                                  &contact_dropped, &contact_overflow_steps, &momentum_remainder, &motion_q, &motion_v,
-                                 &motion_acceleration, &motion_unbalanced, &motion_recorded})
+                                 &motion_acceleration, &motion_unbalanced, &motion_recorded, &applied_actuation,
+                                 &actuator_command, &actuator_state})
     values += static_cast<std::size_t>(a->size());
   return values * sizeof(T);
 }
@@ -313,6 +314,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
       options_(options),
       dofs_(dofs.empty() ? default_dof_settings(model) : std::move(dofs)) {
   validate(model, copies, options_, dofs_);
+  validate_actuators(model, options_.actuators);
   check_mass_matrix(model);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
@@ -435,6 +437,12 @@ std::string Simulator::describe_plan() const {
   const auto weightless = std::count(m.body_gravity.begin(), m.body_gravity.end(), std::uint8_t(0));
   if (weightless > 0) out << " (switched off on " << weightless << " of " << m.nbody << " bodies)";
   out << "\n";
+  if (!options_.actuators.empty()) {
+    const auto enforced = std::count_if(options_.actuators.begin(), options_.actuators.end(),
+                                        [](const Actuator& a) { return a.enforce_operating_region; });
+    out << "  actuators: " << options_.actuators.size() << " (" << enforced
+        << " within their motors' operating regions)\n";
+  }
   for (const StageDecision& d : plan_)
     out << "  " << stage_name(d.stage) << ": " << (d.runs ? "runs" : "skipped") << " (" << d.reason << ")\n";
   const bool contacts = contacts_found();
@@ -612,7 +620,7 @@ template <class Batch>
 auto copy_parameters(Batch& b) {
   return std::array{&b.state.tau, &b.state.wrench, &b.state.inertia, &b.state.gravity, &b.target_q, &b.target_v,
                     &b.drive_stiffness, &b.drive_damping, &b.joint_damping, &b.armature, &b.joint_friction, &b.ground,
-                    &b.ground_friction, &b.initial_q, &b.initial_v, &b.fault};
+                    &b.ground_friction, &b.initial_q, &b.initial_v, &b.fault, &b.actuator_command, &b.actuator_state};
 }
 
 // What Simulator::contacts and contact_overflow report of a copy's last
@@ -628,7 +636,8 @@ auto contact_report(Batch& b) {
 // StepOptions::record_applied_torque).
 template <class Batch>
 auto applied_torque_report(Batch& b) {
-  return std::array{&b.applied_drive, &b.applied_passive, &b.applied_friction, &b.applied_limits};
+  return std::array{&b.applied_drive, &b.applied_passive, &b.applied_friction, &b.applied_limits,
+                    &b.applied_actuation};
 }
 
 // The motion of a copy's last step that incoming_joint_forces() and
@@ -742,6 +751,41 @@ void Simulator::set_torque(int copy, const Eigen::VectorXd& tau) {
   check_copy(copy, "set_torque");
   check_velocity(tau, "set_torque");
   visit([&](auto& b) { b.state.tau.set(copy, tau); });
+}
+
+void Simulator::set_actuator_torques(int copy, const Eigen::VectorXd& torques) {
+  check_copy(copy, "set_actuator_torques");
+  const auto count = static_cast<Eigen::Index>(options_.actuators.size());
+  require(torques.size() == count, [&] {
+    return "set_actuator_torques: expects " + std::to_string(count) + " values (one per actuator), got " +
+           std::to_string(torques.size());
+  });
+  visit([&](auto& b) { b.actuator_command.set(copy, torques); });
+}
+
+Eigen::VectorXd Simulator::actuator_torques(int copy) const {
+  check_copy(copy, "actuator_torques");
+  return visit([&](auto& b) { return Eigen::VectorXd(b.actuator_command.get(copy)); });
+}
+
+std::vector<ActuatorState> Simulator::actuator_states(int copy) const {
+  check_copy(copy, "actuator_states");
+  return visit([&](auto& b) {
+    std::vector<ActuatorState> states;
+    for (std::size_t m = 0; m < options_.actuators.size(); ++m) {
+      const Actuator& a = options_.actuators[m];
+      ActuatorState state;
+      state.command = static_cast<double>(b.actuator_command.at(copy, static_cast<int>(m)));
+      state.motor_speed = static_cast<double>(b.actuator_state.at(copy, static_cast<int>(2 * m)));
+      state.motor_torque = static_cast<double>(b.actuator_state.at(copy, static_cast<int>(2 * m + 1)));
+      // what the step's own precision gave unclipped
+      using T = std::decay_t<decltype(b.actuator_state.at(0, 0))>;
+      const T unclipped = b.actuator_command.at(copy, static_cast<int>(m)) / static_cast<T>(a.gear);
+      state.clipped = b.actuator_state.at(copy, static_cast<int>(2 * m + 1)) != unclipped;
+      states.push_back(state);
+    }
+    return states;
+  });
 }
 
 void Simulator::set_drive_target(int copy, const Eigen::VectorXd& q_target, const Eigen::VectorXd& v_target) {
@@ -929,6 +973,7 @@ void Simulator::reset(int copy) {
     for (auto* a : {&b.contact_count, &b.contact_dropped, &b.contact_overflow_steps})
       if (a->size() > 0) a->at(copy, 0) = 0;
     for (auto* a : applied_torque_report(b)) a->fill(copy, 0);  // no step since
+    b.actuator_state.fill(copy, 0);
     b.fault.at(copy, 0) = 0;
   });
 }
@@ -939,7 +984,7 @@ AppliedTorque Simulator::applied_torque(int copy) const {
     throw std::logic_error("Simulator::applied_torque needs StepOptions::record_applied_torque");
   return visit([&](auto& b) {
     return AppliedTorque{b.applied_drive.get(copy), b.applied_passive.get(copy), b.applied_friction.get(copy),
-                         b.applied_limits.get(copy)};
+                         b.applied_limits.get(copy), b.applied_actuation.get(copy)};
   });
 }
 

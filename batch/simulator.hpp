@@ -78,6 +78,14 @@ struct StepBatch {
   // limit impulses / dt; with substeps, the mean over the step's pipeline
   // runs. Empty otherwise.
   BatchArray<T> applied_drive, applied_passive, applied_friction, applied_limits;
+  // (nv) the actuators' joint torques over the last step, with
+  // record_applied_torque (explicit, so without an implicit part). Empty otherwise.
+  BatchArray<T> applied_actuation;
+  // Per actuator (StepOptions::actuators): the torque each copy commands
+  // (tau_a at the driven joint; kept until changed, like `tau`), and the
+  // motor's speed and torque of the last step's last evaluation (omega,
+  // tau_m; 2 per actuator).
+  BatchArray<T> actuator_command, actuator_state;
   // With StepOptions::record_motion, the motion of the last step's last
   // pipeline run, from which Simulator::incoming_joint_forces and
   // link_accelerations find theirs: the run's start state (nq, nv); its
@@ -115,6 +123,7 @@ struct AppliedTorque {
   Eigen::VectorXd passive;   // damping, springs, soft limits, Stribeck friction
   Eigen::VectorXd friction;  // Coulomb friction impulse / dt
   Eigen::VectorXd limits;    // position and velocity limit impulses / dt
+  Eigen::VectorXd actuators; // the actuators' torques on the joints (G tau_m, r_c tau_m)
 };
 
 // One contact point of a copy after a step (Simulator::contacts).
@@ -135,7 +144,8 @@ struct Contact {
 // other way round it is dropped), and the
 // copy's inputs and per-copy parameters (torques, wrenches, inertial
 // parameters, gravity, drive targets and gains, joint damping, armature,
-// ground, initial state, fault), in that order in `parameters`; and what
+// ground, initial state, fault, actuator commands and the motors' last
+// states), in that order in `parameters`; and what
 // contacts() and contact_overflow() report of its last step (the points'
 // positions, normals and separations, the count, the dropped, the overflow
 // steps), in that order in `contact_report`. Restoring a snapshot, into
@@ -143,7 +153,7 @@ struct Contact {
 // included.
 struct CopySnapshot {
   Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, momentum_remainder, parameters, contact_report;
-  // applied_torque()'s four sources of the last step (empty without
+  // applied_torque()'s five sources of the last step (empty without
   // StepOptions::record_applied_torque)
   Eigen::VectorXd applied_torque;
   // StepBatch's motion_q, motion_v, motion_acceleration, motion_unbalanced
@@ -255,13 +265,21 @@ class Simulator {
   // wrench stage on (bulk writers through batch<T>() force it On instead).
   void set_link_wrench(int copy, int body, const Eigen::Matrix<double, 6, 1>& wrench);
   void set_gravity(int copy, const Eigen::Vector3d& gravity);
+  // (StepOptions::actuators.size()) the torque each actuator is commanded,
+  // tau_a at its driven joint [N m or N]; clipped to the motor's operating
+  // region in the step (batch/actuators.hpp). Persists like set_torque's.
+  void set_actuator_torques(int copy, const Eigen::VectorXd& torques);
+  Eigen::VectorXd actuator_torques(int copy) const;
+  // Each actuator's command, motor speed and torque in the copy's last
+  // step (zero before the first and after a reset), in StepOptions::actuators' order.
+  std::vector<ActuatorState> actuator_states(int copy) const;
 
   // Faults: the reason a copy was flagged (None when healthy).
   Fault fault(int copy) const;
   int fault_count() const;
   void clear_fault(int copy);
-  // Back to the initial state, warm start, fault, contact report and applied
-  // torques cleared.
+  // Back to the initial state, warm start, fault, contact report, applied
+  // torques and actuator states cleared.
   void reset(int copy);
 
   AppliedTorque applied_torque(int copy) const;  // needs record_applied_torque

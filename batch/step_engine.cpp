@@ -39,16 +39,17 @@ L fault_code(Fault f) {
 }  // namespace
 
 template <class L>
-StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact,
-                                int candidates)
-    : ws(km), terms(km.nv), rows(joint_rows + contact.capacity * contact.rows_per_contact, columns, km.nv),
+StepEngine<L>::Scratch::Scratch(const KernelModel<T>& km, int motors, int joint_rows, int columns,
+                                const ContactParams<T>& contact, int candidates)
+    : ws(km), terms(km.nv, motors), rows(joint_rows + contact.capacity * contact.rows_per_contact, columns, km.nv),
       contacts(contact.capacity, contact.rows_per_contact, km.nv, km.nbody, candidates), u0(km.nv), u1(km.nv), u_free(km.nv), qacc(km.nv),
       displacement(km.nv), q_next(km.nq), q_stage(km.nq), v_stage(km.nv),
       v_sum(km.nv), a_sum(km.nv), needed(joint_rows + contact.capacity * contact.rows_per_contact),
       needed_source(needed.m), need(joint_rows), violated(joint_rows),
       column_built(columns), new_columns(columns), held_coupling(static_cast<std::size_t>(columns) * needed.m),
       dof_velocity(columns), dof_displacement(columns), held_speed(columns), momentum_target(km.nbody),
-      momentum_added(km.nbody), articulation_mass(km.nbody), command_sum(km.nv), passive_sum(km.nv) {}
+      momentum_added(km.nbody), articulation_mass(km.nbody), command_sum(km.nv), passive_sum(km.nv),
+      actuation_sum(km.nv) {}
 
 template <class L>
 StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& options,
@@ -82,6 +83,27 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     jm_.falloff_velocity.push_back(static_cast<T>(d.falloff_velocity));
     jm_.stribeck_velocity.push_back(static_cast<T>(d.stribeck_velocity));
   }
+  std::vector<bool> actuated(nv, false);
+  for (const Actuator& a : options.actuators) {
+    typename JointTermModel<T>::Motor motor{a.dof,
+                                            static_cast<T>(a.gear),
+                                            static_cast<T>(a.stall_torque()),
+                                            static_cast<T>(a.back_emf_damping()),
+                                            static_cast<T>(a.peak_torque),
+                                            a.enforce_operating_region,
+                                            {}};
+    actuated[a.dof] = true;
+    for (const auto& [dof, ratio] : a.couplings) {
+      motor.couplings.emplace_back(dof, static_cast<T>(ratio));
+      actuated[dof] = true;
+    }
+    jm_.motors.push_back(std::move(motor));
+  }
+  for (int k = 0; k < nv; ++k)
+    if (actuated[k]) jm_.actuated.push_back(k);
+  const int motors = static_cast<int>(options.actuators.size());
+  batch_.actuator_command = BatchArray<T>(copies, motors, kWidth);
+  batch_.actuator_state = BatchArray<T>(copies, 2 * motors, kWidth);
   set_plan(plan);
   if (options.conserve_linear_momentum) {
     momentum_root_.assign(model.nbody, -1);
@@ -129,7 +151,8 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   }
   batch_.impulse = BatchArray<T>(copies, static_cast<int>(row_specs_.size()), kWidth);
   // without recording, empty per copy (a snapshot packs none)
-  for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction, &batch_.applied_limits})
+  for (BatchArray<T>* a : {&batch_.applied_drive, &batch_.applied_passive, &batch_.applied_friction,
+                           &batch_.applied_limits, &batch_.applied_actuation})
     *a = BatchArray<T>(copies, options.record_applied_torque ? nv : 0, kWidth);
   const bool motion = options.record_motion;
   batch_.motion_q = BatchArray<T>(copies, motion ? model.nq : 0, kWidth);
@@ -162,7 +185,10 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
 template <class L>
 void StepEngine<L>::reserve_scratch(int slots) {
   while (static_cast<int>(scratch_.size()) < slots) {
-    auto make = [&] { return Scratch(km_, scratch_rows_, scratch_columns_, contact_params_, scratch_candidates_); };
+    auto make = [&] {
+      return Scratch(km_, static_cast<int>(jm_.motors.size()), scratch_rows_, scratch_columns_, contact_params_,
+                     scratch_candidates_);
+    };
     scratch_.push_back(std::make_unique<ScratchPair>(ScratchPair{{make(), make()}}));
     for (Scratch& s : scratch_.back()->s) s.clock.on = profiling_;
   }
@@ -380,7 +406,9 @@ void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
                           any_non_finite<L>(B.target_v.block(block), driven_v_)
                     : lane::mask_t<L>(false),
        Fault::NonFiniteTarget},
-      {any_non_finite<L>(tau_ff, nv), Fault::NonFiniteTorque}};
+      {any_non_finite<L>(tau_ff, nv) ||
+           any_non_finite<L>(B.actuator_command.block(block), static_cast<int>(jm_.motors.size())),
+       Fault::NonFiniteTorque}};
   for (const auto& [bad, code] : checks) s.input_fault = lane::select(bad, fault_code<L>(code), s.input_fault);
 
   BlockInputs<T> in;
@@ -394,15 +422,18 @@ void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
                                     joint_parameter(B.drive_stiffness, scene_drive_stiffness_, block),
                                     joint_parameter(B.drive_damping, scene_drive_damping_, block),
                                     joint_parameter(B.joint_damping, scene_damping_, block),
-                                    joint_parameter(B.armature, scene_armature_, block)};
+                                    joint_parameter(B.armature, scene_armature_, block),
+                                    B.actuator_command.block(block)};
   for (int k = 0; k < nv; ++k) s.u0[k] = lane::load<L>(v + k * W);
 
   if (options_.integrator == Integrator::RK4) {
     rk4_block(in, tau_ff, terms_in, q, h, fields(s.q_next), s);
+    record_actuator_states(block, s);
     s.clock.lap(&StepProfile::dynamics);
     return;
   }
   free_acceleration(q, v, h, in, tau_ff, terms_in, JointTerms::AtThisState, s);
+  record_actuator_states(block, s);
   // u1 with the Free joints' linear velocities in the frame at the start of
   // the step (add_frame_turn_rate); back into the body frame at the end.
   for (int k = 0; k < nv; ++k) s.u1[k] = lane::fmadd(L(h), s.qacc[k], s.u0[k]);
@@ -562,6 +593,7 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
     lane::store(s.qacc[k], asum + k * W);
     s.command_sum[k] = s.terms.command[k];
     s.passive_sum[k] = s.terms.passive[k];
+    s.actuation_sum[k] = s.terms.actuation[k];
   }
   const T fractions[3] = {T(0.5) * h, T(0.5) * h, h};
   const T weights[3] = {T(2), T(2), T(1)};
@@ -584,6 +616,7 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
       lane::store(lane::fmadd(w, s.qacc[k], lane::load<L>(asum + k * W)), asum + k * W);
       s.command_sum[k] = lane::fmadd(w, s.terms.command[k], s.command_sum[k]);
       s.passive_sum[k] = lane::fmadd(w, s.terms.passive[k], s.passive_sum[k]);
+      s.actuation_sum[k] = lane::fmadd(w, s.terms.actuation[k], s.actuation_sum[k]);
     }
   }
   const T sixth = h / T(6);
@@ -592,6 +625,7 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
     s.u1[k] = lane::fmadd(L(sixth), lane::load<L>(asum + k * W), s.u0[k]);
     s.terms.command[k] = one_sixth * s.command_sum[k];
     s.terms.passive[k] = one_sixth * s.passive_sum[k];
+    s.terms.actuation[k] = one_sixth * s.actuation_sum[k];
   }
   integrate<L>(km_, q0, vsum, sixth, q_out);
 }
@@ -1037,6 +1071,7 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
   T* passive = batch_.applied_passive.block(block);
   T* friction = batch_.applied_friction.block(block);
   T* limits = batch_.applied_limits.block(block);
+  T* actuation = batch_.applied_actuation.block(block);
   auto add = [&](T* out, const L& torque, bool first) {
     lane::store(first ? share * torque : lane::fmadd(share, torque, lane::load<L>(out)), out);
   };
@@ -1044,6 +1079,7 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
     const L rate = (s.u1[k] - s.u0[k]) * inv_h;
     add(drive + k * W, lane::fnmadd(s.terms.drive_implicit[k], rate, s.terms.command[k]), first_run);
     add(passive + k * W, lane::fnmadd(s.terms.passive_implicit[k], rate, s.terms.passive[k]), first_run);
+    add(actuation + k * W, s.terms.actuation[k], first_run);
     if (first_run) lane::store(L(T(0)), friction + k * W), lane::store(L(T(0)), limits + k * W);
   }
   const T* impulse = batch_.impulse.block(block);
@@ -1051,6 +1087,16 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
     const JointRowSpec<T>& spec = row_specs_[r];
     T* out = (spec.kind == JointRowKind::Friction ? friction : limits) + spec.dof * W;
     add(out, s.rows.sigma[r] * lane::load<L>(impulse + r * W) * inv_h, false);
+  }
+}
+
+template <class L>
+void StepEngine<L>::record_actuator_states(int block, const Scratch& s) {
+  constexpr std::size_t W = lane::width_v<L>;
+  T* out = batch_.actuator_state.block(block);
+  for (std::size_t m = 0; m < jm_.motors.size(); ++m) {
+    lane::store(s.terms.motor_speed[m], out + 2 * m * W);
+    lane::store(s.terms.motor_torque[m], out + (2 * m + 1) * W);
   }
 }
 

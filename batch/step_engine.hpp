@@ -132,14 +132,15 @@ class StepEngine final : public Simulator::Engine {
     std::vector<Vec3<L>> momentum_target, momentum_added;  // (nbody)
     std::vector<L> articulation_mass;      // (nbody)
     // rk4_block's sums of the stages' joint forces, by RK4's weights (nv)
-    std::vector<L> command_sum, passive_sum;
+    std::vector<L> command_sum, passive_sum, actuation_sum;
     // carried from begin_block to end_block
     L input_fault;
     bool solving = false;      // the block has rows to solve this step
     bool joint_rows_needed = false;  // some lane needs a joint row at the free velocity
     bool contact_columns = false;  // the contact rows' Mt^-1 J^T are built (build_contact_columns)
     bool contact_rows_spilled = false;  // the contact rows are in `rows` too (spill_contact_rows)
-    Scratch(const KernelModel<T>& km, int joint_rows, int columns, const ContactParams<T>& contact, int candidates);
+    Scratch(const KernelModel<T>& km, int motors, int joint_rows, int columns, const ContactParams<T>& contact,
+            int candidates);
   };
   // A worker steps two blocks at a time (step_blocks).
   struct ScratchPair {
@@ -191,6 +192,8 @@ class StepEngine final : public Simulator::Engine {
   int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
   void make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings);
   void record_applied(int block, T h, bool first_run, Scratch& s);
+  // The motors' speeds and torques of the run's last evaluation, per copy.
+  void record_actuator_states(int block, const Scratch& s);
   void record_motion(int block, T h, Scratch& s);
   // StepOptions::conserve_linear_momentum (batch/step_momentum.cpp): the
   // target from the start of the step, before the Free joints' velocities

@@ -3,6 +3,7 @@
 // limits), and the stages of the pipeline that a scene switches on.
 #pragma once
 
+#include "batch/actuators.hpp"
 #include "batch/contact_settings.hpp"
 #include "batch/precision.hpp"
 #include "layout/model.hpp"
@@ -129,6 +130,9 @@ struct StepOptions {
   // values per copy written per step; the readouts are found when read.
   bool record_motion = false;
   ContactSettings contacts;  // ground, static boxes, filters, contact parameters
+  // Motors behind gearboxes with their operating regions (batch/actuators.hpp);
+  // each copy commands them through Simulator::set_actuator_torques.
+  std::vector<Actuator> actuators;
   std::array<StageMode, kStageCount> stages{};  // all Auto
 
   StepOptions& force(Stage stage, StageMode mode) {
@@ -147,7 +151,7 @@ struct StageDecision {
 // Reason a copy was flagged. Sticky until the copy is reset or cleared.
 enum class Fault : unsigned char {
   None = 0,
-  NonFiniteTorque,  // feedforward joint torque
+  NonFiniteTorque,  // feedforward joint torque or actuator command
   NonFiniteTarget,  // drive target position or velocity
   NonFiniteWrench,  // external link wrench
   NonFiniteGravity,

@@ -45,7 +45,12 @@ void fill_initial_state(const Model& model, VecEnvOptions& options) {
 }
 
 const char* action_mode_name(ActionMode mode) {
-  return mode == ActionMode::Torque ? "torque" : "position_target";
+  switch (mode) {
+    case ActionMode::Torque: return "torque";
+    case ActionMode::PositionTarget: return "position_target";
+    case ActionMode::ActuatorTorque: return "actuator_torque";
+  }
+  return "?";
 }
 
 Observations::Observations(int copies, const Model& model, bool contacts, bool motion)
@@ -62,10 +67,19 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
     : header_check_(caller),
       options_(checked(model, std::move(options))),
       sim_(model, copies, options_.step, options_.dofs) {
-  for (int k = 0; k < model.nv; ++k)
-    if (!is_free_dof(model, k)) action_dofs_.push_back(k);
-  for (int k : action_dofs_)  // the DOF's torque, or the first target coordinate of its joint
-    action_field_.push_back(options_.action_mode == ActionMode::Torque ? k : model.body_q_offset[model.dof_body[k]]);
+  if (options_.action_mode == ActionMode::ActuatorTorque) {
+    const std::vector<Actuator>& actuators = options_.step.actuators;
+    require(!actuators.empty(), "VecEnv: actuator_torque actions need actuators (StepOptions::actuators is empty)");
+    for (std::size_t a = 0; a < actuators.size(); ++a) {  // the actuator's command
+      action_dofs_.push_back(actuators[a].dof);
+      action_field_.push_back(static_cast<int>(a));
+    }
+  } else {
+    for (int k = 0; k < model.nv; ++k)
+      if (!is_free_dof(model, k)) action_dofs_.push_back(k);
+    for (int k : action_dofs_)  // the DOF's torque, or the first target coordinate of its joint
+      action_field_.push_back(options_.action_mode == ActionMode::Torque ? k : model.body_q_offset[model.dof_body[k]]);
+  }
   if (model.nbody > 0 && model.body_joint[0] != JointType::Free) {
     const int root = model.articulations.front().root_frame;
     if (model.frame_body[root] < 0) fixed_base_pose_ = model.frame_placement[root];
@@ -231,7 +245,8 @@ void VecEnv::visit_batch(F&& f) const {
 
 void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
   const Model& m = model();
-  const bool torque = options_.action_mode == ActionMode::Torque;
+  const bool actuators = options_.action_mode == ActionMode::ActuatorTorque;
+  const bool torque = options_.action_mode == ActionMode::Torque || actuators;
   visit_batch([&](auto& b) {
     using T = std::decay_t<decltype(b.state.q.at(0, 0))>;
     const int W = b.state.q.width();
@@ -239,7 +254,7 @@ void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
     tbb::parallel_for(tbb::blocked_range<int>(0, b.state.q.blocks(), 16), [&](const tbb::blocked_range<int>& range) {
       for (int block = range.begin(); block < range.end(); ++block) {
         const int first = block * W, lanes = std::min(W, copies() - first);
-        T* out = torque ? b.state.tau.block(block) : b.target_q.block(block);
+        T* out = actuators ? b.actuator_command.block(block) : torque ? b.state.tau.block(block) : b.target_q.block(block);
         for (int a = 0; a < action_size();) {
           const int field = action_field_[a];
           if (torque || m.body_joint[m.dof_body[action_dofs_[a]]] != JointType::Spherical) {
@@ -262,6 +277,15 @@ void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
       }
     });
   });
+}
+
+std::vector<std::string> VecEnv::action_names() const {
+  std::vector<std::string> names;
+  if (options_.action_mode == ActionMode::ActuatorTorque)
+    for (const Actuator& a : options_.step.actuators) names.push_back(a.name);
+  else
+    for (int k : action_dofs_) names.push_back(model().dof_name[k]);
+  return names;
 }
 
 Eigen::VectorXd VecEnv::position_action(const Eigen::VectorXd& q) const {
@@ -374,13 +398,15 @@ void VecEnv::observe_block(const Batch& b, int block, Observations& o) const {
   if (first + W < copies()) prefetch_rows(o, first + W, std::min(W, copies() - first - W));
   transpose_block(b.state.q.block(block), m.nq, W, first, lanes, o.q);
   transpose_block(b.state.v.block(block), m.nv, W, first, lanes, o.qd);
-  // the applied torque: the sum of its four sources, in double
+  // the applied torque: the sum of its five sources, in double
   const auto *drive = b.applied_drive.block(block), *passive = b.applied_passive.block(block);
   const auto *friction = b.applied_friction.block(block), *limits = b.applied_limits.block(block);
+  const auto* actuation = b.applied_actuation.block(block);
   for (int k = 0; k < m.nv; ++k)
     for (int l = 0; l < lanes; ++l) {
       const int i = k * W + l;
-      o.applied_torque(first + l, k) = double(drive[i]) + double(passive[i]) + double(friction[i]) + double(limits[i]);
+      o.applied_torque(first + l, k) = double(drive[i]) + double(passive[i]) + double(friction[i]) + double(limits[i]) +
+                                       double(actuation[i]);
     }
   const auto* gravity = b.state.gravity.block(block);
   for (int l = 0; l < lanes; ++l) {

@@ -36,8 +36,10 @@ namespace lockstep {
 // What an action sets, for each DOF that is not a floating root's (the
 // actuated DOFs, low-level order): its feedforward torque, or its drive's
 // position target (velocity target 0). A Spherical joint's three values are
-// then a rotation vector r: target quaternion exp(r).
-enum class ActionMode { Torque, PositionTarget };
+// then a rotation vector r: target quaternion exp(r). ActuatorTorque: one
+// value per actuator (StepOptions::actuators, in their order), the torque
+// it is commanded (Simulator::set_actuator_torques).
+enum class ActionMode { Torque, PositionTarget, ActuatorTorque };
 const char* action_mode_name(ActionMode mode);
 
 struct VecEnvOptions {
@@ -116,7 +118,10 @@ class VecEnv {
   const VecEnvOptions& options() const { return options_; }
   int copies() const { return sim_.copies(); }
   int action_size() const { return static_cast<int>(action_dofs_.size()); }
-  const std::vector<int>& action_dofs() const { return action_dofs_; }  // DOF of each action column
+  // DOF of each action column (an actuator's: the DOF it drives)
+  const std::vector<int>& action_dofs() const { return action_dofs_; }
+  // Each action column's name: its DOF's, or its actuator's.
+  std::vector<std::string> action_names() const;
   // The PositionTarget action row (action_size() values) whose targets are
   // the configuration q (nq): each actuated joint's coordinate, a Spherical
   // joint's quaternion as its rotation vector. E.g. the row that holds the

@@ -69,8 +69,7 @@ StaticDataset static_matrix(const char* name, const RowMatrix& values, const cha
 std::vector<Attribute> run_attributes(const VecEnv& env, const RolloutInfo& info) {
   const Model& m = env.model();
   const VecEnvOptions& o = env.options();
-  std::vector<std::string> action_names;
-  for (int k : env.action_dofs()) action_names.push_back(m.dof_name[k]);
+  const std::vector<std::string> action_names = env.action_names();
   std::vector<Attribute> a = {
       {"lockstep_version", std::string(lockstep_version())},
       {"build", build_description()},

@@ -43,7 +43,8 @@ constexpr Token<Precision> kPrecisions[] = {{"float", Precision::Float}, {"doubl
 constexpr Token<Lanes> kLanes[] = {{"simd", Lanes::Simd}, {"scalar", Lanes::Scalar}};
 constexpr Token<DriveType> kDriveTypes[] = {{"force", DriveType::Force}, {"acceleration", DriveType::Acceleration}};
 constexpr Token<ActionMode> kActionModes[] = {{"torque", ActionMode::Torque},
-                                              {"position_target", ActionMode::PositionTarget}};
+                                              {"position_target", ActionMode::PositionTarget},
+                                              {"actuator_torque", ActionMode::ActuatorTorque}};
 
 template <class E, std::size_t N>
 const char* token_name(const Token<E> (&tokens)[N], E value) {
@@ -432,6 +433,59 @@ void read_links_without_gravity(const json::Value& v, const At& at, Model& model
   }
 }
 
+// A DOF named as `lockstep info` lists them ("knee", "ball[1]"), not a
+// floating base's.
+int actuated_dof(const Model& model, const std::string& name, const At& at) {
+  const auto it = model.dof_by_name.find(name);
+  if (it == model.dof_by_name.end())
+    at.fail("unknown joint \"" + name + "\"" + did_you_mean(name, model.dof_name) +
+            " (run `lockstep info` to list the joints)");
+  if (model.body_joint[model.dof_body[it->second]] == JointType::Free)
+    at.fail("joint \"" + name + "\" is the floating base: it takes no actuator");
+  return it->second;
+}
+
+// "actuators": motors behind gearboxes (batch/actuators.hpp), in order.
+void read_actuators(const json::Value& v, const At& at, const Model& model, std::vector<Actuator>& actuators) {
+  expect_type(v, json::Value::Type::Array, at, "an array of actuators");
+  for (std::size_t i = 0; i < v.array.size(); ++i) {
+    const Object o(v.array[i], at.index(i),
+                   {"name", "joint", "gear", "couplings", "torque_constant", "bus_voltage", "resistance",
+                    "velocity_constant", "peak_torque", "enforce_operating_region"});
+    auto required = [&](const char* key) -> const json::Value& {
+      const json::Value* value = o.find(key);
+      if (!value) o.at().fail(std::string("missing key \"") + key + "\"");
+      return *value;
+    };
+    Actuator a;
+    a.name = read_string(required("name"), o.at("name"));
+    if (a.name.empty()) o.at("name").fail("must not be empty");
+    for (const Actuator& other : actuators)
+      if (other.name == a.name) o.at("name").fail("\"" + a.name + "\" names another actuator");
+    a.dof = actuated_dof(model, read_string(required("joint"), o.at("joint")), o.at("joint"));
+    o.with("gear", [&](const json::Value& x, const At& k) { a.gear = read_number(x, k, Bound::Positive); });
+    o.with("couplings", [&](const json::Value& x, const At& k) {
+      expect_type(x, json::Value::Type::Object, k, "an object of ratios keyed by joint name");
+      for (const auto& [name, ratio] : x.object) {
+        const int dof = actuated_dof(model, name, k.key(name));
+        if (dof == a.dof) k.key(name).fail("the driven joint itself");
+        a.couplings.emplace_back(dof, read_number(ratio, k.key(name)));
+      }
+    });
+    a.torque_constant = read_number(required("torque_constant"), o.at("torque_constant"), Bound::Positive);
+    a.bus_voltage = read_number(required("bus_voltage"), o.at("bus_voltage"), Bound::Positive);
+    a.resistance = read_number(required("resistance"), o.at("resistance"), Bound::Positive);
+    a.velocity_constant = read_number(required("velocity_constant"), o.at("velocity_constant"), Bound::Positive);
+    // null: no peak torque
+    o.with("peak_torque", [&](const json::Value& x, const At& k) {
+      a.peak_torque = x.type == json::Value::Type::Null ? Model::kInfinity : read_number(x, k, Bound::Positive);
+    });
+    o.with("enforce_operating_region",
+           [&](const json::Value& x, const At& k) { a.enforce_operating_region = read_bool(x, k); });
+    actuators.push_back(std::move(a));
+  }
+}
+
 // "links": surface properties of every shape declared on a URDF link.
 void read_link_surfaces(const json::Value& v, const At& at, const Model& model, ContactSettings& c) {
   expect_type(v, json::Value::Type::Object, at, "an object keyed by link name");
@@ -560,7 +614,8 @@ void read_randomization(const json::Value& v, const At& at, Randomization& r) {
 
 const std::vector<std::string> kTopKeys = {
     "model",    "floating_base", "gravity", "links_without_gravity", "initial_state", "drive_targets", "ground",
-    "boxes",    "contacts",      "drives",  "joint_dynamics",        "step",          "env",           "randomization"};
+    "boxes",    "contacts",      "drives",  "joint_dynamics",        "actuators",     "step",          "env",
+    "randomization"};
 
 // The model path: relative paths from the scene file's folder.
 std::string resolve_model_path(const std::string& scene_path, const Object& root) {
@@ -645,6 +700,8 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
   root.with("drives", [&](const json::Value& v, const At& at) { read_per_joint<DriveEntry>(v, at, model, env.dofs); });
   root.with("joint_dynamics",
             [&](const json::Value& v, const At& at) { read_per_joint<DynamicsEntry>(v, at, model, env.dofs); });
+  root.with("actuators",
+            [&](const json::Value& v, const At& at) { read_actuators(v, at, model, env.step.actuators); });
   root.with("step", [&](const json::Value& v, const At& at) { read_step(v, at, env.step); });
   root.with("env", [&](const json::Value& v, const At& at) { read_env(v, at, env); });
   root.with("randomization", [&](const json::Value& v, const At& at) { read_randomization(v, at, env.randomization); });
@@ -652,6 +709,7 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
     root.at("randomization").key("ground_friction").fail("the scene has no ground");
   check(path, [&] { validate_contact_settings(model, env.step.contacts); });
   check(path, [&] { validate_randomization(env.randomization); });
+  check(path, [&] { validate_actuators(model, env.step.actuators); });
   return scene;
 }
 
@@ -1003,6 +1061,26 @@ std::optional<std::string> ground_start_warning(const Scene& scene) {
   return out.str();
 }
 
+json::Value actuators_value(const Model& model, const std::vector<Actuator>& actuators) {
+  validate_actuators(model, actuators);
+  std::vector<json::Value> items;
+  for (const Actuator& a : actuators) {
+    std::vector<Member> couplings;
+    for (const auto& [dof, ratio] : a.couplings) couplings.emplace_back(model.dof_name[dof], number_value(ratio));
+    items.push_back(object_value({{"name", string_value(a.name)},
+                                  {"joint", string_value(model.dof_name[a.dof])},
+                                  {"gear", number_value(a.gear)},
+                                  {"couplings", object_value(std::move(couplings))},
+                                  {"torque_constant", number_value(a.torque_constant)},
+                                  {"bus_voltage", number_value(a.bus_voltage)},
+                                  {"resistance", number_value(a.resistance)},
+                                  {"velocity_constant", number_value(a.velocity_constant)},
+                                  {"peak_torque", number_value(a.peak_torque)},  // inf: null
+                                  {"enforce_operating_region", bool_value(a.enforce_operating_region)}}));
+  }
+  return array_value(std::move(items));
+}
+
 std::string scene_to_json(const Scene& scene) {
   const Model& model = scene.model;
   const VecEnvOptions& env = scene.env;
@@ -1032,6 +1110,7 @@ std::string scene_to_json(const Scene& scene) {
   m.emplace_back("contacts", contacts_value(model, env.step));
   m.emplace_back("drives", std::move(drives));
   m.emplace_back("joint_dynamics", std::move(dynamics));
+  if (!env.step.actuators.empty()) m.emplace_back("actuators", actuators_value(model, env.step.actuators));
   m.emplace_back("step", step_value(env.step));
   m.emplace_back("env", env_value(env));
   m.emplace_back("randomization", randomization_value(env.randomization));

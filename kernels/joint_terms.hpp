@@ -14,7 +14,8 @@
 // An Acceleration drive scales both parts by the joint's articulated inertia
 // D = S^T IA S + armature, known only inside ABA; so does the effort clamp,
 // which bounds feedforward + explicit PD together (RaiSim step 1). Passive
-// terms are added after the clamp and never clipped. Stribeck friction is
+// terms and the actuators' torques (clipped to their motors' operating
+// regions instead, step 2) are added after the clamp. Stribeck friction is
 // explicit, but for its linear ramp below the fall-off velocity, a damper.
 #pragma once
 
@@ -33,6 +34,17 @@ struct JointTermModel {
   std::vector<T> lower, upper;                    // (nv) limits, used by soft limits
   std::vector<T> limit_stiffness, limit_damping;  // (nv) 0 on hard-limited DOFs
   std::vector<T> coulomb, stiction_extra, falloff_velocity, stribeck_velocity;  // (nv) Stribeck model
+  // Actuators (batch/actuators.hpp) in the working precision; the DOFs any
+  // of them drives, each once, are `actuated` (their actuation is summed
+  // afresh per evaluation, the others' stays zero).
+  struct Motor {
+    int dof;
+    T gear, stall_torque, back_emf_damping, peak_torque;
+    bool enforce;
+    std::vector<std::pair<int, T>> couplings;
+  };
+  std::vector<Motor> motors;
+  std::vector<int> actuated;
 };
 
 // Per-block results of joint_term_prepass, read by the ABA policy below.
@@ -43,9 +55,11 @@ struct JointTermScratch {
   std::vector<L> command;                    // (nv) clamped feedforward + PD of the step
   std::vector<L> drive_implicit;             // (nv) w of the drive, after scaling
   std::vector<L> implicit_diagonal;          // (nv) everything added to S^T IA S: the armature and the whole w
-  explicit JointTermScratch(int nv)
+  std::vector<L> actuation;                  // (nv) the actuators' joint torques, zero on DOFs none drives
+  std::vector<L> motor_speed, motor_torque;  // (motors) omega and tau_m of the last evaluation
+  JointTermScratch(int nv, int motors)
       : pd(nv), pd_implicit(nv), passive(nv), passive_implicit(nv), command(nv), drive_implicit(nv),
-        implicit_diagonal(nv) {}
+        implicit_diagonal(nv), actuation(nv, L(lane::scalar_t<L>(0))), motor_speed(motors), motor_torque(motors) {}
 };
 
 // Per-lane inputs of the joint effects for one block ([field][lane]).
@@ -59,7 +73,36 @@ struct JointTermInputs {
   const T* damping = nullptr;   // (nv) kd
   const T* joint_damping = nullptr;  // (nv) viscous damping coefficient
   const T* armature = nullptr;  // (nv) rotor inertia, joins D with w
+  const T* actuator_command = nullptr;  // (motors) tau_a, at the driven joints
 };
+
+// The actuators' joint torques at the velocity v (batch/actuators.hpp):
+// each motor's speed, its commanded torque clipped to the operating region
+// (the peak torque, then the voltage lines), and G tau_m on the driven DOF,
+// r_c tau_m on each coupled one, summed into s.actuation.
+template <class L>
+void actuator_torques(const JointTermModel<lane::scalar_t<L>>& jm, const JointTermInputs<lane::scalar_t<L>>& in,
+                      JointTermScratch<L>& s) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  for (int dof : jm.actuated) s.actuation[dof] = L(T(0));
+  for (std::size_t m = 0; m < jm.motors.size(); ++m) {
+    const typename JointTermModel<T>::Motor& motor = jm.motors[m];
+    const L gear(motor.gear);
+    L omega = gear * lane::load<L>(in.v + motor.dof * W);
+    for (const auto& [dof, ratio] : motor.couplings) omega = lane::fmadd(L(ratio), lane::load<L>(in.v + dof * W), omega);
+    L torque = lane::load<L>(in.actuator_command + m * W) / gear;
+    if (motor.enforce) {
+      const L stall(motor.stall_torque), peak(motor.peak_torque);
+      const L emf = L(motor.back_emf_damping) * omega;
+      torque = lane::clamp(lane::clamp(torque, -peak, peak), -stall - emf, stall - emf);
+    }
+    s.motor_speed[m] = omega;
+    s.motor_torque[m] = torque;
+    s.actuation[motor.dof] = lane::fmadd(gear, torque, s.actuation[motor.dof]);
+    for (const auto& [dof, ratio] : motor.couplings) s.actuation[dof] = lane::fmadd(L(ratio), torque, s.actuation[dof]);
+  }
+}
 
 // The smooth dry friction of the articulated-actors reference, opposing v:
 // below the fall-off velocity a linear ramp to the peak static force
@@ -168,6 +211,7 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
       passive_implicit_out[k] = passive_implicit;
     }
   }
+  if (!jm.motors.empty()) actuator_torques<L>(jm, in, s);
 }
 
 // The ABA joint-terms policy of the step (see aba_with): the clamped
@@ -198,6 +242,7 @@ struct StepJointTerms {
     s.command[dof] = command;
     s.drive_implicit[dof] = w_drive;
     tau = command + s.passive[dof];
+    if (!jm.motors.empty()) tau = tau + s.actuation[dof];
     const L w = w_drive + s.passive_implicit[dof] + armature_k;
     s.implicit_diagonal[dof] = w;
     return w;

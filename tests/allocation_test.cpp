@@ -310,5 +310,38 @@ TEST(Allocations, VecEnvStepAllocatesNothingWithOrWithoutResets) {
     }
 }
 
+// VecEnv::step with actuator_torque actions: each leg joint's motor, the
+// knees coupled to their hips, commanded past their operating regions.
+TEST(Allocations, VecEnvStepThroughActuatorsAllocatesNothing) {
+  if (!kCounts) GTEST_SKIP() << kNotCounted;
+  const Model model = test::load_shared_model("anymal_b", true);
+  const step_scene::Scene scene = step_scene::make_scene(model, true);
+  VecEnvOptions o;
+  o.step.contacts.ground = true;
+  o.dofs = scene.dofs;
+  o.initial_q = scene.q0;
+  o.action_mode = ActionMode::ActuatorTorque;
+  for (int k = 6; k < model.nv; ++k) {
+    Actuator a;
+    a.name = model.dof_name[k];
+    a.dof = k;
+    a.gear = 9;
+    a.torque_constant = 0.12, a.bus_voltage = 48, a.resistance = 0.3, a.velocity_constant = 8, a.peak_torque = 3.5;
+    if ((k - 6) % 3 == 2) a.couplings = {{k - 1, 0.5}};
+    o.step.actuators.push_back(a);
+  }
+  VecEnv env(model, 40, o);
+  env.reset();
+  const RowMatrix actions = RowMatrix::Constant(40, env.action_size(), 50.0);
+  env.step(actions);
+  env.step(actions);
+  EXPECT_EQ(allocations_of([&] {
+              for (int i = 0; i < 3; ++i) env.step(actions);
+            }),
+            0)
+      << counted_allocation_stacks();
+  EXPECT_NE(env.observations().applied_torque.rightCols(12).norm(), 0.0) << "the motors act";
+}
+
 }  // namespace
 }  // namespace lockstep

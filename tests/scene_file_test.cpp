@@ -133,6 +133,15 @@ void expect_same_scene(const Scene& a, const Scene& b) {
   EXPECT_EQ(a.model.nq, b.model.nq);
   expect_bits(a.model.gravity, b.model.gravity, "gravity");
   EXPECT_EQ(a.model.body_gravity, b.model.body_gravity);
+  ASSERT_EQ(a.env.step.actuators.size(), b.env.step.actuators.size());
+  for (std::size_t i = 0; i < a.env.step.actuators.size(); ++i) {
+    const Actuator &x = a.env.step.actuators[i], &y = b.env.step.actuators[i];
+    EXPECT_EQ(std::tie(x.name, x.dof, x.gear, x.couplings, x.torque_constant, x.bus_voltage, x.resistance,
+                       x.velocity_constant, x.peak_torque, x.enforce_operating_region),
+              std::tie(y.name, y.dof, y.gear, y.couplings, y.torque_constant, y.bus_voltage, y.resistance,
+                       y.velocity_constant, y.peak_torque, y.enforce_operating_region))
+        << "actuator " << i;
+  }
   expect_same_step(a.env.step, b.env.step);
   ASSERT_EQ(a.env.dofs.size(), b.env.dofs.size());
   for (std::size_t k = 0; k < a.env.dofs.size(); ++k)
@@ -195,6 +204,11 @@ std::string full_scene(const std::string& model) {
     "joints": {"FL_knee": {"kp": 80, "kd": 2, "max_force": 40, "type": "force"}, "FR_knee": {"max_force": null}}
   },
   "joint_dynamics": {"default": {"damping": 0.1, "friction": 0}, "joints": {"HL_knee": {"friction": 0.3}}},
+  "actuators": [
+    {"name": "knee", "joint": "FL_knee", "gear": 9, "couplings": {"FL_hip_flex": 0.5, "FL_hip_abad": -0.25}, "torque_constant": 0.12,
+     "bus_voltage": 48, "resistance": 0.3, "velocity_constant": 8, "peak_torque": 3.5, "enforce_operating_region": false},
+    {"name": "hip", "joint": "HR_hip_flex", "torque_constant": 0.1, "bus_voltage": 24, "resistance": 1, "velocity_constant": 10, "peak_torque": null}
+  ],
   "step": {
     "dt": 0.001, "substeps": 2, "solver": "tgs", "iterations": 8, "integrator": "trapezoid", "precision": "double",
     "lanes": "scalar", "error_reduction": 0.3, "warm_start": 0.5, "implicit_gyroscopic": false,
@@ -252,6 +266,22 @@ TEST_F(SceneFile, EveryKeyLandsInItsField) {
     const std::string& link = m.frame_name[m.body_frame[b]];
     EXPECT_EQ(m.body_gravity[b], link == "FL_shank" || link == "base" ? 0 : 1) << link;
   }
+  // actuators: in order, joints by name, the defaults where not given
+  ASSERT_EQ(e.step.actuators.size(), 2u);
+  const Actuator& knee = e.step.actuators[0];
+  EXPECT_EQ(knee.name, "knee");
+  EXPECT_EQ(knee.dof, dof(m, "FL_knee"));
+  EXPECT_EQ(knee.gear, 9);
+  EXPECT_EQ(knee.couplings,
+            (std::vector<std::pair<int, double>>{{dof(m, "FL_hip_flex"), 0.5}, {dof(m, "FL_hip_abad"), -0.25}}));
+  EXPECT_EQ(std::tie(knee.torque_constant, knee.bus_voltage, knee.resistance, knee.velocity_constant, knee.peak_torque),
+            std::make_tuple(0.12, 48.0, 0.3, 8.0, 3.5));
+  EXPECT_FALSE(knee.enforce_operating_region);
+  const Actuator& hip = e.step.actuators[1];
+  EXPECT_EQ(hip.gear, 1);
+  EXPECT_TRUE(hip.couplings.empty());
+  EXPECT_EQ(hip.peak_torque, Model::kInfinity);
+  EXPECT_TRUE(hip.enforce_operating_region);
 
   // initial state: given joints set, the others neutral, at rest
   Eigen::VectorXd q0 = m.neutral_configuration();
@@ -807,6 +837,26 @@ INSTANTIATE_TEST_SUITE_P(
                   "body; name \"FL_shank\""}},
         BadScene{"gravity_link_twice", R"(, "links_without_gravity": ["FL_shank", "FL_shank"])",
                  {"links_without_gravity[1]: link \"FL_shank\" is listed twice"}},
+        BadScene{"actuators_not_an_array", R"(, "actuators": {})", {"actuators: expected an array of actuators"}},
+        BadScene{"actuator_missing_key",
+                 R"(, "actuators": [{"name": "m", "joint": "FL_knee", "bus_voltage": 1, "resistance": 1, "velocity_constant": 1}])",
+                 {"actuators[0]: missing key \"torque_constant\""}},
+        BadScene{"actuator_unknown_joint",
+                 R"(, "actuators": [{"name": "m", "joint": "FL_kne", "torque_constant": 1, "bus_voltage": 1, "resistance": 1, "velocity_constant": 1}])",
+                 {"actuators[0].joint: unknown joint \"FL_kne\" (did you mean \"FL_knee\"?)"}},
+        BadScene{"actuator_on_the_base",
+                 R"(, "actuators": [{"name": "m", "joint": "quadruped_root[2]", "torque_constant": 1, "bus_voltage": 1, "resistance": 1, "velocity_constant": 1}])",
+                 {"actuators[0].joint: joint \"quadruped_root[2]\" is the floating base"}},
+        BadScene{"actuator_coupled_to_itself",
+                 R"(, "actuators": [{"name": "m", "joint": "FL_knee", "couplings": {"FL_knee": 1}, "torque_constant": 1, "bus_voltage": 1, "resistance": 1, "velocity_constant": 1}])",
+                 {"actuators[0].couplings.FL_knee: the driven joint itself"}},
+        BadScene{"actuator_negative_constant",
+                 R"(, "actuators": [{"name": "m", "joint": "FL_knee", "torque_constant": 1, "bus_voltage": -48, "resistance": 1, "velocity_constant": 1}])",
+                 {"actuators[0].bus_voltage: must be > 0, got -48"}},
+        BadScene{"actuator_names_twice",
+                 R"(, "actuators": [{"name": "m", "joint": "FL_knee", "torque_constant": 1, "bus_voltage": 1, "resistance": 1, "velocity_constant": 1},
+                                    {"name": "m", "joint": "FR_knee", "torque_constant": 1, "bus_voltage": 1, "resistance": 1, "velocity_constant": 1}])",
+                 {"actuators[1].name: \"m\" names another actuator"}},
         BadScene{"unknown_link", R"(, "contacts": {"links": {"paw": {"friction": 1}}})",
                  {"contacts.links.paw: unknown link \"paw\""}},
         BadScene{"misspelled_link", R"(, "contacts": {"links": {"FL_shnak": {"friction": 1}}})",

@@ -481,6 +481,9 @@ void print_json(const BenchReport& r, std::ostream& out) {
 // MuJoCo's peer of the scene: one kp and kd for every drive, so a scene
 // whose gains differ between joints has none.
 std::optional<std::string> mujoco_difference(const Scene& scene) {
+  if (!scene.env.step.actuators.empty())
+    return "the scene has actuators (" + scene.env.step.actuators.front().name +
+           "), whose motor operating regions the MuJoCo peer does not model";
   std::optional<std::pair<double, double>> gains;
   for (int k = 0; k < scene.model.nv; ++k) {
     if (scene.model.body_joint[scene.model.dof_body[k]] == JointType::Free) continue;

@@ -59,13 +59,15 @@ Policy::Policy(PolicyKind kind, const VecEnv& env, std::uint64_t seed) : kind_(k
     } else {
       amplitude_[j] = std::isfinite(d.max_force) ? 0.3 * d.max_force : 1.0;
     }
+    // an actuator's torque is bounded by its motor, not by the joint's effort limit
+    if (o.action_mode == ActionMode::ActuatorTorque) effort_[j] = Model::kInfinity;
   }
 }
 
 void Policy::act(const VecEnv& env, std::int64_t step, RowMatrix& actions) {
   const int n = env.action_size();
   actions.resize(env.copies(), n);
-  const bool torque_hold = env.options().action_mode == ActionMode::Torque && kind_ != PolicyKind::Zero;
+  const bool torque_hold = env.options().action_mode != ActionMode::PositionTarget && kind_ != PolicyKind::Zero;
   const double t = static_cast<double>(step) * env.options().step.dt * env.options().control_steps;
   // the wave is the same for every copy: one sine per column and step
   for (int j = 0; j < n; ++j)
@@ -89,7 +91,7 @@ void Policy::act(const VecEnv& env, std::int64_t step, RowMatrix& actions) {
         actions(c, j) = hold_[j] + a;
         continue;
       }
-      // torque mode: a PD toward the initial pose (1-DOF joints), plus the wave
+      // torque modes: a PD toward the initial pose (1-DOF joints), plus the wave
       const int dof = env.action_dofs()[j];
       const double error = q_index_[j] >= 0 ? env.options().drive_target_q[q_index_[j]] - obs.q(c, q_index_[j]) : 0.0;
       const double pd = kHoldStiffness * error - kHoldDamping * obs.qd(c, dof);
