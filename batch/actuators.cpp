@@ -20,7 +20,13 @@ void require_driven_dof(const Model& model, int dof, const std::string& where, c
 
 }  // namespace
 
-void validate_actuators(const Model& model, const std::vector<Actuator>& actuators) {
+std::vector<std::string> actuator_names(const std::vector<Actuator>& actuators) {
+  std::vector<std::string> names;
+  for (const Actuator& a : actuators) names.push_back(a.name);
+  return names;
+}
+
+void validate_actuators(const Model& model, const std::vector<Actuator>& actuators, Precision precision) {
   std::set<std::string> names;
   for (std::size_t i = 0; i < actuators.size(); ++i) {
     const Actuator& a = actuators[i];
@@ -28,15 +34,26 @@ void validate_actuators(const Model& model, const std::vector<Actuator>& actuato
     require(!a.name.empty(), "actuator " + std::to_string(i) + ": has no name");
     require(names.insert(a.name).second, where + "the name is another actuator's");
     require_driven_dof(model, a.dof, where, "DOF");
+    const char* finite = precision == Precision::Float ? "finite in float" : "finite";
     auto positive = [&](double x, const char* field) {
-      require(std::isfinite(x) && x > 0, [&] { return where + field + " must be finite and > 0, got " + std::to_string(x); });
+      require(finite_in(precision, x) && x > 0,
+              [&] { return where + field + " must be " + finite + " and > 0, got " + number_text(x); });
     };
     positive(a.gear, "gear");
     positive(a.torque_constant, "torque_constant");
     positive(a.bus_voltage, "bus_voltage");
     positive(a.resistance, "resistance");
     positive(a.velocity_constant, "velocity_constant");
-    require(a.peak_torque > 0, [&] { return where + "peak_torque must be > 0 (+inf for none), got " + std::to_string(a.peak_torque); });
+    require(a.peak_torque > 0 && (a.peak_torque == Model::kInfinity || finite_in(precision, a.peak_torque)), [&] {
+      return where + "peak_torque must be > 0 and " + finite + " (+inf for none), got " + number_text(a.peak_torque);
+    });
+    // the constants the step takes: each may be in range while these are not
+    auto derived = [&](double value, const char* field) {
+      require(finite_in(precision, value) && value > 0,
+              [&] { return where + field + " must be " + finite + " and > 0, got " + number_text(value); });
+    };
+    derived(a.stall_torque(), "the stall torque K_t V_bus / R");
+    derived(a.back_emf_damping(), "the back-EMF damping K_t / (R K_v)");
     std::set<int> coupled;
     for (const auto& coupling : a.couplings) {
       const int dof = coupling.first;
@@ -44,8 +61,9 @@ void validate_actuators(const Model& model, const std::vector<Actuator>& actuato
       require_driven_dof(model, dof, where, "coupled DOF");
       require(dof != a.dof, [&] { return where + "coupled DOF " + std::to_string(dof) + " is the driven DOF"; });
       require(coupled.insert(dof).second, [&] { return where + "coupled DOF " + std::to_string(dof) + " given twice"; });
-      require(std::isfinite(ratio), [&] {
-        return where + "the ratio of coupled DOF " + std::to_string(dof) + " must be finite, got " + std::to_string(ratio);
+      require(finite_in(precision, ratio), [&] {
+        return where + "the ratio of coupled DOF " + std::to_string(dof) + " must be " + finite + ", got " +
+               number_text(ratio);
       });
     }
   }

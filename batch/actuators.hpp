@@ -28,6 +28,7 @@
 // driven joint's damping and friction here: add them to its DofSettings.
 #pragma once
 
+#include "batch/precision.hpp"
 #include "layout/model.hpp"
 
 #include <string>
@@ -54,9 +55,10 @@ struct Actuator {
 };
 
 // One actuator's last evaluation in a copy's last step (RaiSim's
-// getActuatorStates: with RK4, its last stage).
+// getActuatorStates: with RK4, its last stage). All zero before the
+// copy's first step and after a reset.
 struct ActuatorState {
-  double command = 0;       // tau_a, at the driven joint [N m]
+  double command = 0;       // tau_a that evaluation took, at the driven joint [N m]
   double motor_speed = 0;   // omega [rad/s]
   double motor_torque = 0;  // tau_m [N m]
   bool clipped = false;     // tau_m != tau_a / G: the operating region bound it
@@ -64,8 +66,12 @@ struct ActuatorState {
 
 // Throws std::invalid_argument naming the actuator (index and name) and
 // the field: a DOF out of range or on a floating base, couplings on the
-// driven DOF or twice on one, non-positive or non-finite constants, names
-// empty or repeated.
-void validate_actuators(const Model& model, const std::vector<Actuator>& actuators);
+// driven DOF or twice on one, non-positive constants, or any of them, a
+// ratio or the stall torque and back-EMF damping they give not finite in
+// `precision`, names empty or repeated.
+void validate_actuators(const Model& model, const std::vector<Actuator>& actuators, Precision precision);
+
+// Their names, in order (VecEnv's action columns, rollout files' columns).
+std::vector<std::string> actuator_names(const std::vector<Actuator>& actuators);
 
 }  // namespace lockstep

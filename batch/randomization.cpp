@@ -1,8 +1,8 @@
 #include "batch/randomization.hpp"
 
 #include "batch/counter_rng.hpp"
+#include "batch/require.hpp"
 
-#include <charconv>
 #include <cmath>
 #include <stdexcept>
 
@@ -40,18 +40,6 @@ bool Randomization::is_identity() const {
   return true;
 }
 
-namespace {
-
-// A bound as the shortest text that reads back as it (0.9000001, not
-// std::to_string's 0.900000, which can make low and high look equal).
-std::string bound_text(double x) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof buffer, x);
-  return std::string(buffer, result.ptr);
-}
-
-}  // namespace
-
 void validate_randomization(const Randomization& r) {
   for (const RandomizationField& f : randomization_fields()) {
     const UniformRange& range = r.*f.range;
@@ -59,13 +47,13 @@ void validate_randomization(const Randomization& r) {
     if (!std::isfinite(range.low) || !std::isfinite(range.high))
       throw std::invalid_argument(name + ": the range's bounds must be finite");
     if (range.low > range.high)
-      throw std::invalid_argument(name + ": low " + bound_text(range.low) + " is above high " +
-                                  bound_text(range.high));
+      throw std::invalid_argument(name + ": low " + number_text(range.low) + " is above high " +
+                                  number_text(range.high));
   }
   auto at_least = [](const UniformRange& range, double bound, bool strict, const char* field) {
     if (strict ? range.low <= bound : range.low < bound)
       throw std::invalid_argument(std::string("randomization.") + field + ": low must be " +
-                                  (strict ? "> " : ">= ") + bound_text(bound) + ", got " + bound_text(range.low));
+                                  (strict ? "> " : ">= ") + number_text(bound) + ", got " + number_text(range.low));
   };
   at_least(r.mass_scale, 0.0, true, "mass_scale");
   at_least(r.ground_friction, 0.0, false, "ground_friction");

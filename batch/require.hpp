@@ -5,6 +5,7 @@
 // arguments are good.
 #pragma once
 
+#include <charconv>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -16,6 +17,14 @@ inline void require(bool ok, Message&& message) {
   if (ok) return;
   if constexpr (std::is_invocable_v<Message>) throw std::invalid_argument(message());
   else throw std::invalid_argument(message);
+}
+
+// A number as the shortest text that reads back as it, for messages
+// (-1e-09, not std::to_string's -0.000000).
+inline std::string number_text(double x) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, x);
+  return std::string(buffer, result.ptr);
 }
 
 // A copy index in [0, copies), or std::out_of_range naming the class and

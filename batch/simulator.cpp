@@ -46,11 +46,12 @@ namespace {
 
 // FNV-1a over what gives a snapshot's arrays their meaning: the bodies'
 // joints (name, type, q and DOF offsets), the links, the joint rows (kind
-// and DOF of each warm-started impulse) and the contact pairs (their
+// and DOF of each warm-started impulse), the contact pairs (their
 // shapes, bodies and candidate numbering, which the warm start's contact
-// ids refer to).
+// ids refer to) and the actuators (name, driven and coupled DOFs: what a
+// command drives).
 std::uint64_t scene_key_of(const Model& model, const std::vector<std::pair<int, int>>& rows,
-                           const ContactPairs& pairs) {
+                           const ContactPairs& pairs, const std::vector<Actuator>& actuators) {
   Fnv1a key;
   key.add(static_cast<std::uint64_t>(model.nbody));
   for (int b = 0; b < model.nbody; ++b) {
@@ -71,6 +72,12 @@ std::uint64_t scene_key_of(const Model& model, const std::vector<std::pair<int, 
     for (const int x : {static_cast<int>(pair.kind), pair.a.shape, pair.a.body, pair.b.shape, pair.b.body,
                         pair.first_candidate})
       key.add(static_cast<std::uint64_t>(static_cast<std::int64_t>(x)));
+  key.add(static_cast<std::uint64_t>(actuators.size()));
+  for (const Actuator& a : actuators) {
+    key.add(a.name);
+    key.add(static_cast<std::uint64_t>(a.dof));
+    for (const auto& [dof, ratio] : a.couplings) key.add(static_cast<std::uint64_t>(dof));
+  }
   return key.value();
 }
 
@@ -114,12 +121,6 @@ void clear_warm_start(StepBatch<T>& b, int copy) {
   b.contact_id.fill(copy, -1);
   b.momentum_remainder.fill(copy, 0);
   b.motion_recorded.fill(copy, 0);
-}
-
-// Finite in the arithmetic the copies run in: a float simulator would store
-// a double beyond float's range (3.4e38) as inf.
-bool finite_in(Precision p, double x) {
-  return std::isfinite(x) && (p == Precision::Double || std::abs(x) <= std::numeric_limits<float>::max());
 }
 
 template <class Derived>
@@ -314,7 +315,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
       options_(options),
       dofs_(dofs.empty() ? default_dof_settings(model) : std::move(dofs)) {
   validate(model, copies, options_, dofs_);
-  validate_actuators(model, options_.actuators);
+  validate_actuators(model, options_.actuators, options_.precision);
   check_mass_matrix(model);
   validate_contact_settings(model, options_.contacts);
   pairs_ = build_contact_pairs(model, options_.contacts);
@@ -344,7 +345,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
     if (simd) start(std::make_unique<StepEngine<lane::simd<double>>>(model, copies, options_, dofs_, plan, pairs_));
     else start(std::make_unique<StepEngine<double>>(model, copies, options_, dofs_, plan, pairs_));
   }
-  scene_key_ = scene_key_of(model, engine_->row_layout(), pairs_);
+  scene_key_ = scene_key_of(model, engine_->row_layout(), pairs_, options_.actuators);
 }
 
 Simulator::~Simulator() = default;
@@ -697,6 +698,10 @@ CopySnapshot Simulator::snapshot(int copy) const {
 void Simulator::restore(int copy, const CopySnapshot& s) {
   check_copy(copy, "restore");
   visit([&](auto& b) {
+    // first: it names what differs, where the sizes below only say that they do
+    require(s.scene_key == 0 || s.scene_key == scene_key_,
+            "restore: the snapshot was taken from another scene (its model's joints or links, its joint rows, "
+            "its contact pairs or its actuators differ from this simulator's)");
     require(s.q.size() == model_->nq && s.v.size() == model_->nv && s.joint_impulse.size() == b.impulse.size() &&
                 s.contact_id.size() == b.contact_id.size() && s.contact_impulse.size() == b.contact_impulse.size() &&
                 (s.momentum_remainder.size() == b.momentum_remainder.size() || s.momentum_remainder.size() == 0 ||
@@ -710,9 +715,6 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
             "restore: the snapshot's applied torques do not match this simulator's record_applied_torque");
     require(s.recorded_motion.size() == packed_size(recorded_motion(b)),
             "restore: the snapshot's recorded motion does not match this simulator's record_motion");
-    require(s.scene_key == 0 || s.scene_key == scene_key_,
-            "restore: the snapshot was taken from another scene (its model's joints or links, its joint rows "
-            "or its contact pairs differ from this simulator's)");
     unpack(s.parameters, copy, copy_parameters(b));
     unpack(s.contact_report, copy, contact_report(b));
     unpack(s.applied_torque, copy, applied_torque_report(b));
@@ -774,14 +776,14 @@ std::vector<ActuatorState> Simulator::actuator_states(int copy) const {
     std::vector<ActuatorState> states;
     for (std::size_t m = 0; m < options_.actuators.size(); ++m) {
       const Actuator& a = options_.actuators[m];
+      const auto command = b.actuator_state.at(copy, static_cast<int>(3 * m));
+      const auto torque = b.actuator_state.at(copy, static_cast<int>(3 * m + 2));
       ActuatorState state;
-      state.command = static_cast<double>(b.actuator_command.at(copy, static_cast<int>(m)));
-      state.motor_speed = static_cast<double>(b.actuator_state.at(copy, static_cast<int>(2 * m)));
-      state.motor_torque = static_cast<double>(b.actuator_state.at(copy, static_cast<int>(2 * m + 1)));
-      // what the step's own precision gave unclipped
-      using T = std::decay_t<decltype(b.actuator_state.at(0, 0))>;
-      const T unclipped = b.actuator_command.at(copy, static_cast<int>(m)) / static_cast<T>(a.gear);
-      state.clipped = b.actuator_state.at(copy, static_cast<int>(2 * m + 1)) != unclipped;
+      state.command = static_cast<double>(command);
+      state.motor_speed = static_cast<double>(b.actuator_state.at(copy, static_cast<int>(3 * m + 1)));
+      state.motor_torque = static_cast<double>(torque);
+      // against what the step's own precision gives unclipped
+      state.clipped = torque != command / static_cast<decltype(command)>(a.gear);
       states.push_back(state);
     }
     return states;

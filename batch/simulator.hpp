@@ -83,8 +83,9 @@ struct StepBatch {
   BatchArray<T> applied_actuation;
   // Per actuator (StepOptions::actuators): the torque each copy commands
   // (tau_a at the driven joint; kept until changed, like `tau`), and the
-  // motor's speed and torque of the last step's last evaluation (omega,
-  // tau_m; 2 per actuator).
+  // last step's last evaluation of the motor: the command it took, the
+  // motor's speed and torque (3 per actuator; zero after a reset, or a
+  // reset_on_fault restart).
   BatchArray<T> actuator_command, actuator_state;
   // With StepOptions::record_motion, the motion of the last step's last
   // pipeline run, from which Simulator::incoming_joint_forces and

@@ -103,7 +103,7 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     if (actuated[k]) jm_.actuated.push_back(k);
   const int motors = static_cast<int>(options.actuators.size());
   batch_.actuator_command = BatchArray<T>(copies, motors, kWidth);
-  batch_.actuator_state = BatchArray<T>(copies, 2 * motors, kWidth);
+  batch_.actuator_state = BatchArray<T>(copies, 3 * motors, kWidth);
   set_plan(plan);
   if (options.conserve_linear_momentum) {
     momentum_root_.assign(model.nbody, -1);
@@ -515,6 +515,7 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
     clear(B.contact_id, T(-1));
     clear(B.momentum_remainder, T(0));
     clear(B.motion_recorded, T(0));
+    clear(B.actuator_state, T(0));
   } else {
     for (int i = 0; i < nq; ++i) lane::store(lane::load<L>(q_next + i * W), q + i * W);
     for (int k = 0; k < nv; ++k) lane::store(s.u1[k], v + k * W);
@@ -1093,10 +1094,12 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
 template <class L>
 void StepEngine<L>::record_actuator_states(int block, const Scratch& s) {
   constexpr std::size_t W = lane::width_v<L>;
+  const T* command = batch_.actuator_command.block(block);
   T* out = batch_.actuator_state.block(block);
   for (std::size_t m = 0; m < jm_.motors.size(); ++m) {
-    lane::store(s.terms.motor_speed[m], out + 2 * m * W);
-    lane::store(s.terms.motor_torque[m], out + (2 * m + 1) * W);
+    lane::store(lane::load<L>(command + m * W), out + 3 * m * W);
+    lane::store(s.terms.motor_speed[m], out + (3 * m + 1) * W);
+    lane::store(s.terms.motor_torque[m], out + (3 * m + 2) * W);
   }
 }
 

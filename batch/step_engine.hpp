@@ -192,7 +192,7 @@ class StepEngine final : public Simulator::Engine {
   int set_up_contacts(int copies, const ContactSettings& settings, const ContactPairs& pairs);
   void make_contact_arrays(int copies, int capacity, int rows_per_contact, const ContactSettings& settings);
   void record_applied(int block, T h, bool first_run, Scratch& s);
-  // The motors' speeds and torques of the run's last evaluation, per copy.
+  // The motors' commands, speeds and torques of the run's last evaluation, per copy.
   void record_actuator_states(int block, const Scratch& s);
   void record_motion(int block, T h, Scratch& s);
   // StepOptions::conserve_linear_momentum (batch/step_momentum.cpp): the

@@ -53,7 +53,7 @@ const char* action_mode_name(ActionMode mode) {
   return "?";
 }
 
-Observations::Observations(int copies, const Model& model, bool contacts, bool motion)
+Observations::Observations(int copies, const Model& model, bool contacts, bool motion, int actuators)
     : q(RowMatrix::Zero(copies, model.nq)), qd(RowMatrix::Zero(copies, model.nv)),
       base_position(RowMatrix::Zero(copies, 3)), base_orientation(RowMatrix::Zero(copies, 4)),
       base_linear_velocity_world(RowMatrix::Zero(copies, 3)), base_angular_velocity_world(RowMatrix::Zero(copies, 3)),
@@ -61,7 +61,8 @@ Observations::Observations(int copies, const Model& model, bool contacts, bool m
       projected_gravity(RowMatrix::Zero(copies, 3)), applied_torque(RowMatrix::Zero(copies, model.nv)),
       contact_force(RowMatrix::Zero(copies, contacts ? 3 * model.nbody : 0)),
       joint_force(RowMatrix::Zero(copies, motion ? 6 * model.nbody : 0)),
-      link_acceleration(RowMatrix::Zero(copies, motion ? 6 * static_cast<int>(model.frame_name.size()) : 0)) {}
+      link_acceleration(RowMatrix::Zero(copies, motion ? 6 * static_cast<int>(model.frame_name.size()) : 0)),
+      motor_speed(RowMatrix::Zero(copies, actuators)), motor_torque(RowMatrix::Zero(copies, actuators)) {}
 
 VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuild caller)
     : header_check_(caller),
@@ -93,8 +94,9 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
                   std::to_string(options_.dofs[k].drive_stiffness));
   contacts_ = sim_.plan()[static_cast<int>(Stage::Contacts)].runs;
   const bool motion = options_.step.record_motion;
-  observations_ = Observations(copies, model, contacts_, motion);
-  terminal_ = Observations(copies, model, contacts_, motion);
+  const int actuators = static_cast<int>(options_.step.actuators.size());
+  observations_ = Observations(copies, model, contacts_, motion, actuators);
+  terminal_ = Observations(copies, model, contacts_, motion, actuators);
   reward_out_ = Eigen::VectorXd::Zero(copies);
   reward_actions_ = RowMatrix::Zero(copies, action_size());
   terminated_.assign(copies, 0);
@@ -280,15 +282,17 @@ void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
 }
 
 std::vector<std::string> VecEnv::action_names() const {
+  if (options_.action_mode == ActionMode::ActuatorTorque) return actuator_names(options_.step.actuators);
   std::vector<std::string> names;
-  if (options_.action_mode == ActionMode::ActuatorTorque)
-    for (const Actuator& a : options_.step.actuators) names.push_back(a.name);
-  else
-    for (int k : action_dofs_) names.push_back(model().dof_name[k]);
+  for (int k : action_dofs_) names.push_back(model().dof_name[k]);
   return names;
 }
 
 Eigen::VectorXd VecEnv::position_action(const Eigen::VectorXd& q) const {
+  if (options_.action_mode == ActionMode::ActuatorTorque)
+    throw std::logic_error(
+        "VecEnv::position_action: the actions are actuator torques (action_mode actuator_torque), not joint "
+        "positions");
   const Model& m = model();
   if (q.size() != m.nq)
     throw std::invalid_argument("VecEnv::position_action: q must have " + std::to_string(m.nq) + " values, got " +
@@ -352,7 +356,7 @@ auto observation_fields(O& o) {
   return std::array{&o.q, &o.qd, &o.base_position, &o.base_orientation, &o.base_linear_velocity_world,
                     &o.base_angular_velocity_world, &o.base_linear_velocity_base, &o.base_angular_velocity_base,
                     &o.projected_gravity, &o.applied_torque, &o.contact_force, &o.joint_force,
-                    &o.link_acceleration};
+                    &o.link_acceleration, &o.motor_speed, &o.motor_torque};
 }
 
 // Asks for the cache lines of rows [first, first + count) of every
@@ -407,6 +411,13 @@ void VecEnv::observe_block(const Batch& b, int block, Observations& o) const {
       const int i = k * W + l;
       o.applied_torque(first + l, k) = double(drive[i]) + double(passive[i]) + double(friction[i]) + double(limits[i]) +
                                        double(actuation[i]);
+    }
+  // the motors: command, speed and torque per actuator in the batch
+  const auto* motors = b.actuator_state.block(block);
+  for (int a = 0; a < o.motor_speed.cols(); ++a)
+    for (int l = 0; l < lanes; ++l) {
+      o.motor_speed(first + l, a) = motors[(3 * a + 1) * W + l];
+      o.motor_torque(first + l, a) = motors[(3 * a + 2) * W + l];
     }
   const auto* gravity = b.state.gravity.block(block);
   for (int l = 0; l < lanes; ++l) {

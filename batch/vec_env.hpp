@@ -85,8 +85,13 @@ struct Observations {
   // frame (Simulator::link_accelerations), world axes.
   RowMatrix joint_force;                    // (N x 6 nbody)
   RowMatrix link_acceleration;              // (N x 6 nframe)
+  // With actuators (StepOptions::actuators, else no columns), each motor's
+  // speed omega [rad/s] and torque tau_m [N m] in the env step's last
+  // simulator step (Simulator::actuator_states), in the actuators' order.
+  RowMatrix motor_speed;                    // (N x actuators)
+  RowMatrix motor_torque;                   // (N x actuators)
   Observations() = default;
-  Observations(int copies, const Model& model, bool contacts, bool motion);
+  Observations(int copies, const Model& model, bool contacts, bool motion, int actuators);
 };
 
 // The user's reward and termination, called once per step() after the
@@ -125,7 +130,8 @@ class VecEnv {
   // The PositionTarget action row (action_size() values) whose targets are
   // the configuration q (nq): each actuated joint's coordinate, a Spherical
   // joint's quaternion as its rotation vector. E.g. the row that holds the
-  // initial pose: position_action(options().initial_q).
+  // initial pose: position_action(options().initial_q). Not with
+  // ActuatorTorque actions (std::logic_error).
   Eigen::VectorXd position_action(const Eigen::VectorXd& q) const;
   void set_reward(RewardFunction reward) { reward_ = std::move(reward); }
 

@@ -63,6 +63,8 @@ void run_kernel(benchmark::State& bench, const ModelChoice& choice, Kernel kerne
       BlockInputs<T> in = block_inputs(s, b);
       in.wrench = nullptr;
       joint_transforms<L>(km, in.q, ws);
+      // the dynamics read the bodies' world poses where gravity is switched off
+      if (kernel != Kernel::Fk && km.gravity_switched_off) world_transforms<L>(km, ws);
       switch (kernel) {
         case Kernel::Fk:
           world_transforms<L>(km, ws);

@@ -23,6 +23,7 @@ ElementType state_type(const VecEnv& env) {
 
 bool has_contacts(const VecEnv& env) { return env.observations().contact_force.cols() > 0; }
 bool has_motion(const VecEnv& env) { return env.observations().joint_force.cols() > 0; }
+bool has_actuators(const VecEnv& env) { return env.observations().motor_speed.cols() > 0; }
 
 // Column names of q: a joint's name, or name[x] ... for multi-entry joints.
 std::vector<std::string> q_names(const Model& m) {
@@ -94,6 +95,7 @@ std::vector<Attribute> run_attributes(const VecEnv& env, const RolloutInfo& info
       {"action_names", action_names},
       {"body_names", body_names(m)},
       {"link_names", m.frame_name},
+      {"actuator_names", actuator_names(o.step.actuators)},
       {"randomization.randomize_ground_friction", static_cast<std::int64_t>(o.randomization.randomize_ground_friction)},
   };
   for (const RandomizationField& f : randomization_fields()) {
@@ -151,6 +153,11 @@ std::vector<StepDataset> rollout_step_datasets(const VecEnv& env) {
     d.push_back({"link_acceleration", state, {n, m.frame_name.size(), 6},
                  "each link's origin acceleration [m/s^2] and angular acceleration [rad/s^2], world"});
   }
+  if (has_actuators(env)) {
+    const std::size_t actuators = env.options().step.actuators.size();
+    d.push_back({"motor_speed", state, {n, actuators}, "each actuator's motor speed [rad/s], actuator_names"});
+    d.push_back({"motor_torque", state, {n, actuators}, "each actuator's motor torque [N m], actuator_names"});
+  }
   return d;
 }
 
@@ -195,6 +202,10 @@ void RolloutRecorder::record(const RowMatrix& actions) {
   if (now.joint_force.cols() > 0) {
     put(optional++, now.joint_force, terminal.joint_force);
     put(optional++, now.link_acceleration, terminal.link_acceleration);
+  }
+  if (now.motor_speed.cols() > 0) {
+    put(optional++, now.motor_speed, terminal.motor_speed);
+    put(optional++, now.motor_torque, terminal.motor_torque);
   }
   convert(actions.data(), actions.size(), writer_->frame_as<double>(kActions));
   std::copy(env_.reward().data(), env_.reward().data() + env_.copies(), writer_->frame_as<double>(kReward));

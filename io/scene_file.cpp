@@ -709,7 +709,7 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
     root.at("randomization").key("ground_friction").fail("the scene has no ground");
   check(path, [&] { validate_contact_settings(model, env.step.contacts); });
   check(path, [&] { validate_randomization(env.randomization); });
-  check(path, [&] { validate_actuators(model, env.step.actuators); });
+  check(path, [&] { validate_actuators(model, env.step.actuators, env.step.precision); });
   return scene;
 }
 
@@ -1062,7 +1062,7 @@ std::optional<std::string> ground_start_warning(const Scene& scene) {
 }
 
 json::Value actuators_value(const Model& model, const std::vector<Actuator>& actuators) {
-  validate_actuators(model, actuators);
+  validate_actuators(model, actuators, Precision::Double);
   std::vector<json::Value> items;
   for (const Actuator& a : actuators) {
     std::vector<Member> couplings;

@@ -7,6 +7,7 @@
 #include <tinyxml2.h>
 #include <urdf_parser/urdf_parser.h>
 
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -217,14 +218,14 @@ struct RawJoint {
   std::string name, type, parent, child;
 };
 
-// Gazebo's link extension <gazebo reference="link"> with <gravity>
-// (true/false/1/0, SDF's bool) or the older <turnGravityOff>: the links it
-// switches gravity off on. A reference naming no link is an error only
-// where it carries one of these elements (Gazebo's joint extensions share
-// the tag).
-std::set<std::string> links_without_gravity(const std::string& src, const XMLElement* robot,
-                                            const std::map<std::string, XMLElement*>& links) {
-  std::set<std::string> off;
+// Gazebo's link extension <gazebo reference="link"> with <gravity> or the
+// older <turnGravityOff>, each an SDF bool (true/false/1/0, any case,
+// surrounding whitespace ignored): whether gravity acts on each link the
+// file switches. A reference naming no link is an error only where it
+// carries one of these elements (Gazebo's joint extensions share the tag).
+std::map<std::string, bool> gravity_switches(const std::string& src, const XMLElement* robot,
+                                             const std::map<std::string, XMLElement*>& links) {
+  std::map<std::string, bool> gravity;
   for (const XMLElement* g = robot->FirstChildElement("gazebo"); g; g = g->NextSiblingElement("gazebo")) {
     const char* reference = g->Attribute("reference");
     for (const char* tag : {"gravity", "turnGravityOff"}) {
@@ -233,14 +234,58 @@ std::set<std::string> links_without_gravity(const std::string& src, const XMLEle
       const std::string where = at(src, e) + ": <" + tag + ">";
       if (!reference) throw ModelError(where + " outside a <gazebo reference=\"link\"> element");
       if (!links.count(reference)) throw ModelError(where + ": <gazebo reference=\"" + reference + "\"> names no link");
-      const std::string text = e->GetText() ? e->GetText() : "";
+      const std::string written = e->GetText() ? e->GetText() : "";
+      std::string text;
+      for (char c : written)
+        if (!std::isspace(static_cast<unsigned char>(c))) text += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
       const bool truth = text == "true" || text == "1";
       if (!truth && text != "false" && text != "0")
-        throw ModelError(where + ": expected true, false, 1 or 0, got '" + text + "'");
-      if (truth == (std::string(tag) == "turnGravityOff")) off.insert(reference);
+        throw ModelError(where + ": expected true, false, 1 or 0, got '" + written + "'");
+      gravity[reference] = truth != (std::string(tag) == "turnGravityOff");
     }
   }
-  return off;
+  return gravity;
+}
+
+// Gravity per moving body, as Gazebo lumps links fixed together: a body
+// takes the switch of its first link (parent-first) that the file switches,
+// and every link in it follows; a link fixed to it that the file switches
+// the other way is a warning. Links fixed to the world move with nothing.
+void apply_gravity_switches(ArticulationSpec& spec, const std::map<std::string, bool>& switches,
+                            const std::string& prefix, std::vector<std::string>& warnings) {
+  const int n = static_cast<int>(spec.links.size());
+  std::map<std::string, int> index;
+  std::vector<int> head(n, 0);  // the link a body is named after
+  std::vector<bool> on_world(n, !spec.floating_base);
+  std::map<int, std::pair<bool, std::string>> body_switch;  // head -> (gravity, the link that set it)
+  for (int i = 0; i < n; ++i) {
+    LinkSpec& link = spec.links[i];
+    index[link.name] = i;
+    if (i > 0) {
+      const int parent = index.at(link.parent);
+      const bool fixed = link.joint.type == JointType::Fixed;
+      head[i] = fixed ? head[parent] : i;
+      on_world[i] = fixed && on_world[parent];
+    }
+    const auto it = switches.find(link.name.substr(prefix.size()));
+    if (it == switches.end()) continue;
+    if (on_world[i]) {
+      warnings.push_back(spec.source + ":" + std::to_string(link.source_line) + ": link '" + link.name +
+                         "': Gazebo gravity switch ignored: the link is fixed to the world, gravity moves nothing there");
+      continue;
+    }
+    const auto [set, inserted] = body_switch.emplace(head[i], std::pair{it->second, link.name});
+    if (!inserted && set->second.first != it->second)
+      warnings.push_back(spec.source + ":" + std::to_string(link.source_line) + ": link '" + link.name +
+                         "': Gazebo gravity switch (" +
+                         (it->second ? "on" : "off") + ") ignored: the link is fixed to link '" +
+                         spec.links[head[i]].name + "' and moves with it as one body, whose gravity link '" +
+                         set->second.second + "' switches " + (set->second.first ? "on" : "off"));
+  }
+  for (int i = 0; i < n; ++i) {
+    const auto it = body_switch.find(head[i]);
+    spec.links[i].gravity = it == body_switch.end() || it->second.first;
+  }
 }
 
 }  // namespace
@@ -362,7 +407,7 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
   const urdf::ModelInterfaceSharedPtr model = parse_with_urdfdom(printer.CStr(), urdfdom_errors);
   if (!model) throw ModelError(src + ": invalid URDF: " + (urdfdom_errors.empty() ? "rejected by urdfdom" : urdfdom_errors));
 
-  const std::set<std::string> weightless = links_without_gravity(src, robot, links);
+  const std::map<std::string, bool> gravity = gravity_switches(src, robot, links);
   ArticulationSpec spec;
   spec.name = options.name_prefix + robot_name;
   spec.source = src;
@@ -385,7 +430,6 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
     link.name = prefix + v.link;
     link.shapes = shapes[v.link];
     link.source_line = links.at(v.link)->GetLineNum();
-    link.gravity = !weightless.count(v.link);
     const urdf::LinkConstSharedPtr ul = model->getLink(v.link);
     if (ul && ul->inertial) {
       const urdf::Inertial& in = *ul->inertial;
@@ -454,6 +498,7 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
     }
     spec.links.push_back(std::move(link));
   }
+  apply_gravity_switches(spec, gravity, prefix, warnings);
 
   if (warnings_out) warnings_out->insert(warnings_out->end(), warnings.begin(), warnings.end());
   return spec;

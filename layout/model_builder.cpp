@@ -283,15 +283,16 @@ int ModelBuilder::add_articulation(const ArticulationSpec& spec_in) {
   std::vector<bool> on_world(n, false);
   on_world[0] = !spec.floating_base;
   for (int i = 1; i < n; ++i) on_world[i] = on_world[parent[i]] && spec.links[i].joint.type == JointType::Fixed;
-  // Gravity is switched per moving body: a link fused into one must agree
-  // with the link the body is named after (links fused into the world carry
-  // nothing that gravity could move).
+  // Gravity is switched per moving body: a link with mass fused into one
+  // must agree with the link the body is named after, whose switch the body
+  // takes (a massless link has no weight, and links fused into the world
+  // carry nothing that gravity could move).
   std::vector<int> body_link(n, 0);
   for (int i = 1; i < n; ++i) {
     const LinkSpec& link = spec.links[i];
     body_link[i] = is_moving(link.joint.type) ? i : body_link[parent[i]];
     const LinkSpec& head = spec.links[body_link[i]];
-    if (!on_world[i] && link.gravity != head.gravity)
+    if (!on_world[i] && link.inertial.mass > 0 && link.gravity != head.gravity)
       throw ModelError(link_ctx(spec, link) + ": gravity " + (link.gravity ? "on" : "off") +
                        ", but it is fixed to link '" + head.name + "', which has gravity " +
                        (head.gravity ? "on" : "off") +

@@ -59,8 +59,9 @@ struct LinkSpec {
   JointSpec joint;     // the joint from `parent` to this link (for the root only its name counts: root_joint_name)
   InertialSpec inertial;
   // Whether gravity acts on the link (PhysX's eDISABLE_GRAVITY switched
-  // off). It is a property of a moving body: every link fused into one by
-  // fixed joints must agree with the link the body is named after.
+  // off). It is a property of a moving body, which takes its switch from
+  // the link it is named after: every link with mass fused into it by fixed
+  // joints must agree.
   bool gravity = true;
   std::vector<Shape> shapes;  // body/frame fields are filled in by the builder; pose in the link frame
   int source_line = 0;        // the link's line in ArticulationSpec::source, for messages (0: none)

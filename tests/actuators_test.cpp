@@ -200,6 +200,52 @@ TEST(Actuators, SnapshotsCarryCommandsAndStatesAndResetsClearTheStates) {
   EXPECT_EQ(sim.actuator_torques(1), Eigen::Vector2d(30.0, -4.0)) << "a command persists, as set_torque's does";
 }
 
+// A state is the last evaluation's: its command is the one that
+// evaluation took, and a copy that has not stepped since its reset has a
+// zero state, not a clipped one.
+TEST(Actuators, AStateDescribesTheEvaluationThatMadeIt) {
+  const Model model = spinner(0.1);
+  Simulator sim(model, 1, actuated(Precision::Double, {motor(0)}));
+  sim.set_actuator_torques(0, Eigen::VectorXd::Constant(1, 5.0));
+  EXPECT_FALSE(sim.actuator_states(0)[0].clipped) << "before the first step";
+  sim.step();
+  sim.set_actuator_torques(0, Eigen::VectorXd::Constant(1, 8.0));
+  const ActuatorState state = sim.actuator_states(0)[0];
+  EXPECT_EQ(state.command, 5.0);
+  EXPECT_EQ(state.motor_torque, 0.5);
+  EXPECT_FALSE(state.clipped);
+  sim.reset(0);
+  EXPECT_FALSE(sim.actuator_states(0)[0].clipped) << "after a reset";
+  EXPECT_EQ(sim.actuator_states(0)[0].command, 0.0);
+}
+
+// A restart after a fault leaves no step behind it either.
+TEST(Actuators, AResetOnFaultRestartClearsTheStates) {
+  const Model model = spinner(0.1);
+  StepOptions o = actuated(Precision::Float, {motor(0)});
+  o.reset_on_fault = true;
+  Simulator sim(model, 2, o);
+  sim.set_actuator_torques(0, Eigen::VectorXd::Constant(1, 5.0));
+  sim.set_actuator_torques(1, Eigen::VectorXd::Constant(1, 5.0));
+  sim.step();
+  sim.set_torque(1, Eigen::VectorXd::Constant(1, std::nan("")));
+  sim.step();
+  EXPECT_EQ(sim.fault(1), Fault::NonFiniteTorque);
+  EXPECT_EQ(sim.actuator_states(1)[0].motor_torque, 0.0);
+  EXPECT_EQ(sim.actuator_states(0)[0].motor_torque, 0.5f);
+}
+
+// A snapshot's commands drive what its actuators drove: another set of
+// actuators is another scene.
+TEST(Actuators, ASnapshotRestoresOnlyWhereTheActuatorsAreTheSame) {
+  const Model model = rod_chain({1.0, 0.5}, 0.4);
+  Simulator a(model, 1, actuated(Precision::Float, {motor(0)}));
+  Simulator b(model, 1, actuated(Precision::Float, {motor(1)}));
+  EXPECT_THROW_WITH(b.restore(0, a.snapshot(0)), std::invalid_argument, "its actuators differ");
+  Simulator two(model, 1, actuated(Precision::Float, {motor(0), motor(1, "other")}));
+  EXPECT_THROW_WITH(two.restore(0, a.snapshot(0)), std::invalid_argument, "its actuators differ");
+}
+
 TEST(Actuators, ANonFiniteCommandFaultsOnlyItsCopy) {
   const Model model = spinner(0.1);
   Simulator sim(model, 3, actuated(Precision::Float, {motor(0)}));
@@ -231,13 +277,18 @@ TEST(Actuators, BadActuatorsAreRefusedByName) {
   const Bad cases[] = {
       {[](Actuator& a) { a.dof = 18; }, "actuator 0 (motor): DOF 18 outside [0, 18)"},
       {[](Actuator& a) { a.dof = 2; }, "actuator 0 (motor): DOF 2 (anymal_root[2]) is a floating base's"},
-      {[](Actuator& a) { a.gear = 0; }, "actuator 0 (motor): gear must be finite and > 0, got 0"},
-      {[](Actuator& a) { a.resistance = -1; }, "resistance must be finite and > 0"},
-      {[](Actuator& a) { a.velocity_constant = Model::kInfinity; }, "velocity_constant must be finite and > 0"},
-      {[](Actuator& a) { a.peak_torque = 0; }, "peak_torque must be > 0 (+inf for none)"},
+      {[](Actuator& a) { a.gear = 0; }, "actuator 0 (motor): gear must be finite in float and > 0, got 0"},
+      {[](Actuator& a) { a.gear = -1e-9; }, "gear must be finite in float and > 0, got -1e-09"},
+      {[](Actuator& a) { a.gear = 1e39; }, "gear must be finite in float and > 0, got 1e+39"},
+      {[](Actuator& a) { a.resistance = 1e-300; }, "the stall torque K_t V_bus / R must be finite in float and > 0"},
+      {[](Actuator& a) { a.velocity_constant = 1e-300; },
+       "the back-EMF damping K_t / (R K_v) must be finite in float and > 0, got 1e+299"},
+      {[](Actuator& a) { a.resistance = -1; }, "resistance must be finite in float and > 0"},
+      {[](Actuator& a) { a.velocity_constant = Model::kInfinity; }, "velocity_constant must be finite in float and > 0"},
+      {[](Actuator& a) { a.peak_torque = 0; }, "peak_torque must be > 0 and finite in float (+inf for none)"},
       {[](Actuator& a) { a.couplings = {{7, 1.0}}; }, "coupled DOF 7 is the driven DOF"},
       {[](Actuator& a) { a.couplings = {{8, 1.0}, {8, 2.0}}; }, "coupled DOF 8 given twice"},
-      {[](Actuator& a) { a.couplings = {{8, std::nan("")}}; }, "the ratio of coupled DOF 8 must be finite"},
+      {[](Actuator& a) { a.couplings = {{8, std::nan("")}}; }, "the ratio of coupled DOF 8 must be finite in float"},
       {[](Actuator& a) { a.couplings = {{0, 1.0}}; }, "coupled DOF 0 (anymal_root[0]) is a floating base's"},
       {[](Actuator& a) { a.name = ""; }, "actuator 0: has no name"},
   };
@@ -273,6 +324,15 @@ TEST(Actuators, VecEnvActsThroughTheActuators) {
     const double expected = c == 1 ? 15.0 : actions(c, 0) + actions(c, 1);
     EXPECT_NEAR(env.observations().applied_torque(c, 0), expected, 1e-12) << "copy " << c;
   }
+  // the motors observed: speed and torque per actuator, in their order
+  ASSERT_EQ(env.observations().motor_torque.cols(), 2);
+  EXPECT_EQ(env.observations().motor_torque(1, 0), 1.5);
+  EXPECT_EQ(env.observations().motor_torque(0, 1), 0.1);
+  EXPECT_EQ(env.observations().motor_speed(0, 0), 0.0);
+  env.step(actions);
+  EXPECT_NEAR(env.observations().motor_speed(1, 0), 10 * 0.002 * 15.0 / 0.1, 1e-13);  // G v after one step
+  EXPECT_THROW_WITH(env.position_action(model.neutral_configuration()), std::logic_error,
+                    "the actions are actuator torques");
   o.step.actuators.clear();
   EXPECT_THROW_WITH(VecEnv(model, 1, o), std::invalid_argument, "actuator_torque actions need actuators");
 }

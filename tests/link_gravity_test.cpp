@@ -61,12 +61,16 @@ TEST(LinkGravity, BuilderKeepsEachBodysSwitch) {
   EXPECT_EQ(anymal.body_gravity, std::vector<std::uint8_t>(anymal.nbody, 1));
 }
 
-TEST(LinkGravity, ALinkFusedIntoABodyMustAgreeWithIt) {
+TEST(LinkGravity, ALinkWithMassFusedIntoABodyMustAgreeWithIt) {
   ModelBuilder builder;
   EXPECT_MODEL_ERROR(builder.add_articulation(arm_with_glove(true, false)), "link 'glove'", "gravity off",
                      "fixed to link 'arm', which has gravity on", "gravity is switched per moving body");
   EXPECT_MODEL_ERROR(builder.add_articulation(arm_with_glove(false, true)), "link 'glove'", "gravity on",
                      "which has gravity off");
+  // a massless frame has no weight to switch: the body takes the arm's
+  ArticulationSpec frame = arm_with_glove(false, true);
+  frame.links[2].inertial = InertialSpec{};
+  EXPECT_EQ(build(frame).body_gravity, std::vector<std::uint8_t>{0});
 }
 
 // ---- the dynamics: switched off == the weight cancelled by a wrench

@@ -88,6 +88,33 @@ Scene short_episode_scene() {
   return scene;
 }
 
+// Records `steps` env steps of `scene` under random actions (one thread) to
+// `file`, and returns, per observation field asked for, its matrix after
+// each step as the file should hold it: terminal rows where an episode ended.
+std::vector<std::vector<RowMatrix>> record_observed(const Scene& scene, int envs, int steps, const std::string& file,
+                                                    const std::vector<RowMatrix Observations::*>& fields) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+  VecEnv env(scene.model, envs, scene.env);
+  env.reset();
+  RolloutRecorder recorder(env, file, {scene_to_json(scene), scene.model_path, "random", {}});
+  cli::Policy policy(cli::PolicyKind::Random, env, scene.env.seed);
+  RowMatrix actions;
+  std::vector<std::vector<RowMatrix>> seen(fields.size());
+  for (int t = 0; t < steps; ++t) {
+    policy.act(env, t, actions);
+    env.step(actions);
+    recorder.record(actions);
+    for (std::size_t f = 0; f < fields.size(); ++f) {
+      RowMatrix field = env.observations().*fields[f];
+      for (int c = 0; c < envs; ++c)
+        if (env.truncated()[c] || env.terminated()[c]) field.row(c) = (env.terminal_observations().*fields[f]).row(c);
+      seen[f].push_back(field);
+    }
+  }
+  recorder.close();
+  return seen;
+}
+
 // model_file is the URDF's absolute path, as documented, however the path
 // was given (it was stored as given: relative to wherever the run started).
 TEST(Rollout, ModelFileIsAbsolute) {
@@ -304,27 +331,9 @@ TEST(Rollout, RecordsTheJointForcesAndLinkAccelerations) {
   Scene scene = short_episode_scene();
   scene.env.step.record_motion = true;
   const int envs = 3, steps = 9;
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-  VecEnv env(scene.model, envs, scene.env);
-  env.reset();
-  RolloutRecorder recorder(env, file, {scene_to_json(scene), scene.model_path, "random", {}});
-  cli::Policy policy(cli::PolicyKind::Random, env, scene.env.seed);
-  RowMatrix actions;
-  std::vector<RowMatrix> forces, accelerations;
-  for (int t = 0; t < steps; ++t) {
-    policy.act(env, t, actions);
-    env.step(actions);
-    recorder.record(actions);
-    RowMatrix f = env.observations().joint_force, a = env.observations().link_acceleration;
-    for (int c = 0; c < envs; ++c)
-      if (env.truncated()[c] || env.terminated()[c]) {
-        f.row(c) = env.terminal_observations().joint_force.row(c);
-        a.row(c) = env.terminal_observations().link_acceleration.row(c);
-      }
-    forces.push_back(f);
-    accelerations.push_back(a);
-  }
-  recorder.close();
+  const auto seen = record_observed(scene, envs, steps, file, {&Observations::joint_force, &Observations::link_acceleration});
+  const std::vector<RowMatrix>& forces = seen[0];
+  const std::vector<RowMatrix>& accelerations = seen[1];
   const RolloutReader r(file);
   const Model& m = scene.model;
   const std::size_t T = steps, n = envs, frames = m.frame_name.size();
@@ -342,6 +351,44 @@ TEST(Rollout, RecordsTheJointForcesAndLinkAccelerations) {
       for (int k = 0; k < accelerations[t].cols(); ++k)
         ASSERT_EQ(stored_accelerations[(t * n + c) * accelerations[t].cols() + k],
                   static_cast<float>(accelerations[t](c, k)));
+}
+
+// The bundled scene driven through actuators on its knees: the actions are
+// named after them, and the motors' speeds and torques are stored per step.
+TEST(Rollout, RecordsTheMotorsOfActuatorTorqueActions) {
+  const TempDir dir;
+  const std::string file = (dir.path / "motors.h5").string();
+  Scene scene = short_episode_scene();
+  scene.env.action_mode = ActionMode::ActuatorTorque;
+  for (const char* knee : {"FL_knee", "HR_knee"}) {
+    Actuator a;
+    a.name = std::string(knee) + "_motor";
+    a.dof = scene.model.dof_index(knee);
+    a.gear = 9;
+    a.torque_constant = 0.12, a.bus_voltage = 48, a.resistance = 0.3, a.velocity_constant = 8, a.peak_torque = 3.5;
+    scene.env.step.actuators.push_back(a);
+  }
+  const int envs = 3, steps = 9;
+  const auto seen = record_observed(scene, envs, steps, file, {&Observations::motor_speed, &Observations::motor_torque});
+  const std::vector<RowMatrix>& speeds = seen[0];
+  const std::vector<RowMatrix>& torques = seen[1];
+  const RolloutReader r(file);
+  const std::vector<std::string> names = {"FL_knee_motor", "HR_knee_motor"};
+  EXPECT_EQ(std::get<std::vector<std::string>>(r.attribute("action_names")), names);
+  EXPECT_EQ(std::get<std::vector<std::string>>(r.attribute("actuator_names")), names);
+  ASSERT_EQ(r.shape("motor_speed"), (std::vector<std::size_t>{std::size_t(steps), std::size_t(envs), 2}));
+  ASSERT_EQ(r.shape("motor_torque"), (std::vector<std::size_t>{std::size_t(steps), std::size_t(envs), 2}));
+  const std::vector<double> stored_speeds = r.read("motor_speed"), stored_torques = r.read("motor_torque");
+  double moving = 0;
+  for (int t = 0; t < steps; ++t)
+    for (int c = 0; c < envs; ++c)
+      for (int a = 0; a < 2; ++a) {
+        const std::size_t i = (t * envs + c) * 2 + a;
+        ASSERT_EQ(stored_speeds[i], static_cast<float>(speeds[t](c, a))) << "step " << t << ", copy " << c;
+        ASSERT_EQ(stored_torques[i], static_cast<float>(torques[t](c, a))) << "step " << t << ", copy " << c;
+        moving = std::max(moving, std::abs(stored_speeds[i]));
+      }
+  EXPECT_GT(moving, 0.0) << "the motors turned";
 }
 
 // The file after an interrupted rollout opens, holds at least `seen` steps,

@@ -142,15 +142,19 @@ TEST(UrdfImport, ReadsRaisimJointSprings) {
   EXPECT_NEAR(sim.q(0)[0], 0.3, 1e-6);
 }
 
-// Gazebo's per-link gravity switch: <gravity> (SDF's bool) or the older
-// <turnGravityOff>; a <gazebo> element for a joint is no error.
+// Gazebo's per-link gravity switch: <gravity> (SDF's bool, any case,
+// whitespace around it) or the older <turnGravityOff>; a <gazebo> element
+// for a joint is no error. As Gazebo lumps links fixed together, a body
+// takes the switch of its first link that has one, and the links fixed to
+// it follow; one switched the other way is a warning.
 TEST(UrdfImport, ReadsGazebosGravitySwitch) {
   const std::string links = link("base") + link("arm") + link("hand") + link("tool") +
                             joint("shoulder", "continuous", "base", "arm", R"(<axis xyz="0 1 0"/>)") +
                             joint("wrist", "continuous", "arm", "hand", R"(<axis xyz="0 1 0"/>)") +
                             joint("flange", "fixed", "hand", "tool");
-  const ArticulationSpec spec = parse(robot(links + R"(<gazebo reference="arm"><gravity>false</gravity></gazebo>
-<gazebo reference="hand"><turnGravityOff>true</turnGravityOff></gazebo>
+  const ArticulationSpec spec = parse(robot(links + R"(<gazebo reference="arm"><gravity>
+   False </gravity></gazebo>
+<gazebo reference="hand"><turnGravityOff>TRUE</turnGravityOff></gazebo>
 <gazebo reference="tool"><turnGravityOff>true</turnGravityOff></gazebo>
 <gazebo reference="base"><gravity>1</gravity></gazebo>
 <gazebo reference="shoulder"><implicitSpringDamper>true</implicitSpringDamper></gazebo>
@@ -161,10 +165,28 @@ TEST(UrdfImport, ReadsGazebosGravitySwitch) {
   ModelBuilder builder;
   builder.add_articulation(spec);
   EXPECT_EQ(builder.finalize().body_gravity, (std::vector<std::uint8_t>{0, 0}));
-  // the tool is fixed to the hand: one body, so they must agree
-  EXPECT_MODEL_ERROR(ModelBuilder().add_articulation(parse(robot(
-                         links + R"(<gazebo reference="hand"><gravity>0</gravity></gazebo>)"))),
-                     "link 'tool'", "fixed to link 'hand', which has gravity off");
+  // the tool is fixed to the hand: one body, which follows the hand's switch
+  std::vector<std::string> warnings;
+  const ArticulationSpec hand_off =
+      parse(robot(links + R"(<gazebo reference="hand"><gravity>0</gravity></gazebo>)"), &warnings);
+  EXPECT_FALSE(hand_off.links[3].gravity) << "the tool follows its body";
+  EXPECT_TRUE(warnings.empty());
+  const ArticulationSpec tool_on = parse(robot(links + R"(<gazebo reference="hand"><gravity>0</gravity></gazebo>
+<gazebo reference="tool"><gravity>true</gravity></gazebo>)"),
+                                         &warnings);
+  EXPECT_FALSE(tool_on.links[3].gravity);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("link 'tool': Gazebo gravity switch (on) ignored: the link is fixed to link 'hand' and "
+                             "moves with it as one body, whose gravity link 'hand' switches off"),
+            std::string::npos)
+      << warnings[0];
+  // a fixed base's root: fixed to the world
+  warnings.clear();
+  parse(robot(links + R"(<gazebo reference="base"><gravity>0</gravity></gazebo>)"), &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("link 'base': Gazebo gravity switch ignored: the link is fixed to the world"),
+            std::string::npos)
+      << warnings[0];
 }
 
 TEST(UrdfImportError, GazeboGravitySwitch) {
@@ -173,6 +195,8 @@ TEST(UrdfImportError, GazeboGravitySwitch) {
   };
   EXPECT_MODEL_ERROR(with(R"(<gazebo reference="arm"><gravity>off</gravity></gazebo>)"), "<gravity>",
                      "expected true, false, 1 or 0, got 'off'");
+  EXPECT_MODEL_ERROR(with(R"(<gazebo reference="arm"><gravity/></gazebo>)"), "<gravity>",
+                     "expected true, false, 1 or 0, got ''");
   EXPECT_MODEL_ERROR(with(R"(<gazebo reference="elbow"><gravity>false</gravity></gazebo>)"),
                      "<gazebo reference=\"elbow\"> names no link");
   EXPECT_MODEL_ERROR(with(R"(<gazebo><turnGravityOff>true</turnGravityOff></gazebo>)"),

@@ -274,6 +274,7 @@ struct BenchReport {
   bool standing = false;  // a floating base on a ground plane: the standing statistics mean something
   double dt = 0.0;
   int nv = 0, driven_dofs = 0;
+  int nbody = 0, weightless_bodies = 0;  // bodies gravity is switched off on
   std::vector<Row> rows;
   std::vector<PrecisionResult> precisions;
   std::string plan;
@@ -322,7 +323,9 @@ void print_text(const BenchReport& r, std::ostream& out) {
   const BenchConfig& c = r.config;
   out << "lockstep bench: " << c.model << (r.floating_base ? " (floating base)" : " (fixed base)") << "\n";
   if (!c.stand_in_note.empty()) out << "note: " << c.stand_in_note << "\n";
-  out << "scene: " << (r.contacts ? "contacts on" : "no contacts") << ", gravity on, PD drives on " << r.driven_dofs
+  out << "scene: " << (r.contacts ? "contacts on" : "no contacts") << ", gravity on";
+  if (r.weightless_bodies > 0) out << " (off on " << r.weightless_bodies << " of " << r.nbody << " bodies)";
+  out << ", PD drives on " << r.driven_dofs
       << " of " << r.nv << " DOFs holding their targets, dt " << r.dt << " s\n"
       << "machine: " << r.machine << "\n"
       << "build: " << build_description() << "\n"
@@ -525,6 +528,8 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
   report.dt = scene.env.step.dt;
   report.nv = model.nv;
   for (int k = 0; k < model.nv; ++k) report.driven_dofs += scene.env.dofs[k].drive_stiffness > 0;
+  report.nbody = model.nbody;
+  for (int b = 0; b < model.nbody; ++b) report.weightless_bodies += model.body_gravity[b] == 0;
 
   for (Precision precision : config.precisions)
     report.precisions.push_back(time_lockstep(scene, config, precision, report.rows, report.plan));

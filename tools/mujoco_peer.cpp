@@ -439,18 +439,12 @@ int weightless_body(const mjModel* m, const std::string& link) {
   return id;
 }
 
-// The initial state: the drive targets, the floating root at base_height,
-// and on each link without gravity the force -m g at its COM (xfrc_applied
-// acts at the COM, in world axes, and stays until the next reset).
-void reset(const mjModel* m, mjData* d, const std::vector<Drive>& drives, const MujocoScene& scene) {
+// The initial state: the drive targets, the floating root at base_height.
+void reset(const mjModel* m, mjData* d, const std::vector<Drive>& drives, double base_height) {
   mj_resetData(m, d);
   for (int j = 0; j < m->njnt; ++j)
-    if (m->jnt_type[j] == mjJNT_FREE) d->qpos[m->jnt_qposadr[j] + 2] = scene.base_height;
+    if (m->jnt_type[j] == mjJNT_FREE) d->qpos[m->jnt_qposadr[j] + 2] = base_height;
   for (const Drive& drive : drives) d->qpos[drive.qpos] = drive.target;
-  for (const std::string& link : scene.links_without_gravity) {
-    const int body = weightless_body(m, link);
-    for (int k = 0; k < 3; ++k) d->xfrc_applied[6 * body + k] = -m->body_mass[body] * m->opt.gravity[k];
-  }
 }
 
 // Without mju_user_warning, MuJoCo prints each warning and appends it to
@@ -501,11 +495,15 @@ struct Sums {
 // `steps` steps with the PD applied explicitly through qfrc_applied;
 // `root_z` is the qpos address of the floating root's z, -1 without one.
 Sums step_with_pd(const mjModel* m, mjData* d, const std::vector<Drive>& drives, double kp, double kd, long steps,
-                  int root_z) {
+                  int root_z, const std::vector<int>& weightless) {
   Sums sums;
   for (long s = 0; s < steps; ++s) {
     for (const Drive& drive : drives)
       d->qfrc_applied[drive.dof] = kp * (drive.target - d->qpos[drive.qpos]) - kd * d->qvel[drive.dof];
+    // -m g at the COM (xfrc_applied acts there, world axes), written every
+    // step: an mj_step that resets the data clears it
+    for (int body : weightless)
+      for (int k = 0; k < 3; ++k) d->xfrc_applied[6 * body + k] = -m->body_mass[body] * m->opt.gravity[k];
     const double time = d->time;
     mj_step(m, d);
     if (d->time <= time) ++sums.resets;
@@ -530,17 +528,18 @@ struct Trouble {
 // from a common start until the last one finishes; `first` gets the sums
 // of the first data, `trouble` adds the resets and warnings of all of them.
 double time_threads(const mjModel* m, std::vector<DataPtr>& data, const std::vector<Drive>& drives,
-                    const MujocoScene& scene, long steps, int root_z, Sums& first, Trouble& trouble) {
+                    const MujocoScene& scene, long steps, int root_z, const std::vector<int>& weightless, Sums& first,
+                    Trouble& trouble) {
   std::atomic<int> ready{0};
   std::atomic<bool> go{false};
   std::vector<std::thread> workers;
   std::vector<Sums> sums(data.size());
   for (std::size_t i = 0; i < data.size(); ++i) {
-    reset(m, data[i].get(), drives, scene);
+    reset(m, data[i].get(), drives, scene.base_height);
     workers.emplace_back([&, i] {
       ready.fetch_add(1);
       while (!go.load(std::memory_order_acquire)) std::this_thread::yield();
-      sums[i] = step_with_pd(m, data[i].get(), drives, scene.kp, scene.kd, steps, root_z);
+      sums[i] = step_with_pd(m, data[i].get(), drives, scene.kp, scene.kd, steps, root_z, weightless);
     });
   }
   while (ready.load() < static_cast<int>(data.size())) std::this_thread::yield();
@@ -578,15 +577,16 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
   m->opt.timestep = scene.dt;
   if (!scene.ground) m->opt.disableflags |= mjDSBL_CONTACT;
   for (int k = 0; k < 3; ++k) m->opt.gravity[k] = scene.gravity[k];
+  std::vector<int> weightless;
   if (!scene.links_without_gravity.empty()) {
     std::string links;
     for (const std::string& link : scene.links_without_gravity) {
-      weightless_body(m, link);
+      weightless.push_back(weightless_body(m, link));
       links += (links.empty() ? "\"" : ", \"") + link + "\"";
     }
     report.notes.push_back("gravity cancelled on " + links +
-                           " by the force -m g at each one's COM through xfrc_applied (MuJoCo 2.2.2 has no per-body "
-                           "gravity switch)");
+                           " by the force -m g at each one's COM through xfrc_applied before every mj_step (MuJoCo "
+                           "2.2.2 has no per-body gravity switch)");
   }
   report.nq = m->nq;
   report.nv = m->nv;
@@ -613,10 +613,10 @@ MujocoReport run_mujoco_peer(const MujocoScene& scene, const std::vector<int>& t
     for (int t = 0; t < k; ++t) data.emplace_back(mj_makeData(m));
     Sums sums;
     Trouble warm_up;
-    time_threads(m, data, drives, scene, std::max(1L, steps / 10), root_z, sums, warm_up);
+    time_threads(m, data, drives, scene, std::max(1L, steps / 10), root_z, weightless, sums, warm_up);
     std::vector<double> seconds;
     for (int r = 0; r < repeats; ++r)
-      seconds.push_back(time_threads(m, data, drives, scene, steps, root_z, sums, timed));
+      seconds.push_back(time_threads(m, data, drives, scene, steps, root_z, weightless, sums, timed));
     report.timings.push_back({k, steps, median(seconds)});
     report.mean_base_height = steps > 0 ? sums.base_height / static_cast<double>(steps) : 0.0;
     report.mean_contacts = steps > 0 ? sums.contacts / static_cast<double>(steps) : 0.0;

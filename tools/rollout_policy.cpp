@@ -46,6 +46,9 @@ Policy::Policy(PolicyKind kind, const VecEnv& env, std::uint64_t seed) : kind_(k
   wave_.resize(n);
   effort_.resize(n);
   q_index_.assign(n, -1);
+  holds_.assign(n, 1);
+  const bool actuators = o.action_mode == ActionMode::ActuatorTorque;
+  std::vector<char> held(m.nv, 0);  // a DOF whose hold PD an earlier column carries
   for (int j = 0; j < n; ++j) {
     const int dof = env.action_dofs()[j], body = m.dof_body[dof];
     const DofSettings& d = o.dofs[dof];
@@ -59,8 +62,13 @@ Policy::Policy(PolicyKind kind, const VecEnv& env, std::uint64_t seed) : kind_(k
     } else {
       amplitude_[j] = std::isfinite(d.max_force) ? 0.3 * d.max_force : 1.0;
     }
-    // an actuator's torque is bounded by its motor, not by the joint's effort limit
-    if (o.action_mode == ActionMode::ActuatorTorque) effort_[j] = Model::kInfinity;
+    if (actuators) {  // bounded by the motor, not by the joint's effort limit
+      const Actuator& a = o.step.actuators[j];
+      effort_[j] = Model::kInfinity;
+      amplitude_[j] = 0.3 * a.gear * std::min(a.peak_torque, a.stall_torque());
+      holds_[j] = !held[dof];
+      held[dof] = 1;
+    }
   }
 }
 
@@ -94,7 +102,7 @@ void Policy::act(const VecEnv& env, std::int64_t step, RowMatrix& actions) {
       // torque modes: a PD toward the initial pose (1-DOF joints), plus the wave
       const int dof = env.action_dofs()[j];
       const double error = q_index_[j] >= 0 ? env.options().drive_target_q[q_index_[j]] - obs.q(c, q_index_[j]) : 0.0;
-      const double pd = kHoldStiffness * error - kHoldDamping * obs.qd(c, dof);
+      const double pd = holds_[j] ? kHoldStiffness * error - kHoldDamping * obs.qd(c, dof) : 0.0;
       actions(c, j) = std::clamp(pd + a, -effort_[j], effort_[j]);
     }
   };
