@@ -255,9 +255,15 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
               where + "conserve_linear_momentum needs a floating base without damping or armature");
     if (!one_dof) {
       require(d.spring_stiffness == 0, where + "springs act on revolute and prismatic joints only");
-      require(std::isinf(d.lower) && std::isinf(d.upper),
-              where + "position limits act on revolute and prismatic joints only (got " + std::to_string(d.lower) +
-                  " to " + std::to_string(d.upper) + ")");
+      const bool limited = !std::isinf(d.lower) || !std::isinf(d.upper);
+      if (type == JointType::Spherical)
+        require(!limited || d.limit_stiffness > 0,
+                where + "a spherical joint's limits are spring-dampers on its rotation vector: give limit_stiffness > 0 "
+                        "(hard limits act on revolute and prismatic joints only; got " + number_text(d.lower) +
+                    " to " + number_text(d.upper) + ")");
+      else
+        require(!limited, where + "a floating base takes no position limits (got " + number_text(d.lower) + " to " +
+                              number_text(d.upper) + ")");
       require(d.friction == 0 || type == JointType::Spherical,
               where + "friction acts on revolute, prismatic and spherical joints only");
       require(d.friction == 0 || d.friction_model == FrictionModel::Coulomb,
@@ -366,7 +372,7 @@ void Simulator::make_plan() const {
     const DofSettings& d = dofs_[k];
     const JointType type = model_->body_joint[model_->dof_body[k]];
     const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
-    const bool limited = one_dof && (std::isfinite(d.lower) || std::isfinite(d.upper));
+    const bool limited = (one_dof || type == JointType::Spherical) && (std::isfinite(d.lower) || std::isfinite(d.upper));
     drives += d.drive_stiffness > 0 || d.drive_damping > 0;
     damping += d.damping > 0;
     springs += d.spring_stiffness > 0;

@@ -121,6 +121,24 @@ inline L stribeck_friction(const L& v, const L& coulomb, const L& extra, const L
   return lane::select(v > L(T(0)), -magnitude, lane::select(v < L(T(0)), magnitude, L(T(0))));
 }
 
+// A spring-damper limit on a coordinate x moving at v: beyond [lower, upper]
+// at the predicted end of the step x_end = x0 + dt v0, the force
+// k (limit - x_end) - c v pushing back, implicit like the drives (weight
+// dt^2 k + dt c); nothing within the range. Added to passive and its weight.
+template <class L>
+inline void add_soft_limit(const L& x_end, const L& v, lane::scalar_t<L> lower, lane::scalar_t<L> upper,
+                           lane::scalar_t<L> stiffness, lane::scalar_t<L> damping, const L& h, const L& h2, L& passive,
+                           L& passive_implicit) {
+  using T = lane::scalar_t<L>;
+  const L kl(stiffness), cl(damping), zero(T(0));
+  const L below = L(lower) - x_end, above = L(upper) - x_end;
+  const auto under = below > zero, over = above < zero;
+  const L push = lane::select(under, below, lane::select(over, above, zero));
+  const auto active = under || over;
+  passive = passive + lane::select(active, lane::fnmadd(cl, v, kl * push), zero);
+  passive_implicit = passive_implicit + lane::select(active, lane::fmadd(h2, kl, h * cl), zero);
+}
+
 // Fills the scratch's explicit forces and implicit weights for one block.
 // Each DOF's four values are summed in registers and stored once; the
 // scratch's data pointers are taken once, since a SIMD store may alias any
@@ -154,12 +172,20 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
     const int n = spherical ? 3 : 1;
     // position error to the drive target, per DOF
     L error[3];
+    // a spherical joint's limits bound its rotation vector r = log(q), whose
+    // components move at (about: exactly for small or single-axis turns) its
+    // DOFs' velocities, the child-frame angular velocity
+    L rotation[3];
     if (spherical) {
       // RaiSim: the rotation vector of q^-1 q_target, in the joint's child frame
       const Quaternion<L> a = load_quaternion<L>(in.q + qo * W);
       const Quaternion<L> c = load_quaternion<L>(in.target_q + qo * W);
       const Vec3<L> e = quaternion_log(quaternion_multiply(Quaternion<L>{a.w, -a.x, -a.y, -a.z}, c));
       error[0] = e.x, error[1] = e.y, error[2] = e.z;
+      if (jm.soft_limits) {
+        const Vec3<L> r = quaternion_log(a);
+        rotation[0] = r.x, rotation[1] = r.y, rotation[2] = r.z;
+      }
     } else {
       error[0] = lane::load<L>(in.target_q + qo * W) - lane::load<L>(in.q + qo * W);
     }
@@ -178,6 +204,9 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
         passive = lane::fnmadd(c, v, passive);
         passive_implicit = lane::fmadd(h, c, passive_implicit);
       }
+      if (spherical && jm.soft_limits)
+        add_soft_limit(lane::fmadd(h, v, rotation[i]), v, jm.lower[k], jm.upper[k], jm.limit_stiffness[k],
+                       jm.limit_damping[k], h, h2, passive, passive_implicit);
       if (!spherical) {  // springs, soft limits and Stribeck: 1-DOF joints
         const L q = lane::load<L>(in.q + qo * W);
         const L q_end = lane::fmadd(h, v, q);  // q0 + dt v0
@@ -186,17 +215,9 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
           passive = lane::fmadd(ks, L(jm.spring_rest[k]) - q_end, passive);
           passive_implicit = lane::fmadd(h2, ks, passive_implicit);
         }
-        if (jm.soft_limits) {
-          // beyond a limit (at the predicted end of the step): a spring-damper
-          // pushing back, k (limit - q) - c v, implicit like the drives
-          const L kl(jm.limit_stiffness[k]), cl(jm.limit_damping[k]);
-          const L below = L(jm.lower[k]) - q_end, above = L(jm.upper[k]) - q_end;
-          const auto under = below > L(T(0)), over = above < L(T(0));
-          const L push = lane::select(under, below, lane::select(over, above, zero));
-          const auto active = under || over;
-          passive = passive + lane::select(active, lane::fnmadd(cl, v, kl * push), zero);
-          passive_implicit = passive_implicit + lane::select(active, lane::fmadd(h2, kl, h * cl), zero);
-        }
+        if (jm.soft_limits)
+          add_soft_limit(q_end, v, jm.lower[k], jm.upper[k], jm.limit_stiffness[k], jm.limit_damping[k], h, h2, passive,
+                         passive_implicit);
         if (jm.stribeck) {
           const L coulomb(jm.coulomb[k]), extra(jm.stiction_extra[k]), falloff(jm.falloff_velocity[k]);
           passive = passive + stribeck_friction(v, coulomb, extra, falloff, L(jm.stribeck_velocity[k]));
