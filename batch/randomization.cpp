@@ -26,6 +26,7 @@ const std::vector<RandomizationField>& randomization_fields() {
       {"root_yaw_noise", &Randomization::root_yaw_noise},
       {"root_velocity_noise", &Randomization::root_velocity_noise},
       {"joint_friction_scale", &Randomization::joint_friction_scale},
+      {"actuator_strength_scale", &Randomization::actuator_strength_scale},
   };
   return fields;
 }
@@ -62,6 +63,7 @@ void validate_randomization(const Randomization& r) {
   at_least(r.damping_scale, 0.0, false, "damping_scale");
   at_least(r.armature_add, 0.0, false, "armature_add");
   at_least(r.joint_friction_scale, 0.0, false, "joint_friction_scale");
+  at_least(r.actuator_strength_scale, 0.0, true, "actuator_strength_scale");
 }
 
 double draw(const UniformRange& range, std::uint64_t seed, int copy, std::uint32_t reset, int field, int k) {

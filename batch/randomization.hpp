@@ -37,6 +37,9 @@ struct Randomization {
   UniformRange damping_scale{1.0, 1.0};
   UniformRange armature_add{0.0, 0.0};
   UniformRange joint_friction_scale{1.0, 1.0};  // per DOF: scales its Coulomb joint friction
+  // per actuator: its strength, the share of its motor's torque that
+  // reaches the joints (Simulator::set_actuator_strength)
+  UniformRange actuator_strength_scale{1.0, 1.0};
   // Added to each axis of the scene's gravity [m/s^2].
   UniformRange gravity_offset{0.0, 0.0};
   // Initial-state noise, added to the configured initial state: each

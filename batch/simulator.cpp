@@ -34,7 +34,7 @@ std::size_t StepBatch<T>::bytes_per_copy() const {
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
                                  &contact_dropped, &contact_overflow_steps, &momentum_remainder, &motion_q, &motion_v,
                                  &motion_acceleration, &motion_unbalanced, &motion_recorded, &applied_actuation,
-                                 &actuator_command, &actuator_state})
+                                 &actuator_command, &actuator_state, &actuator_strength})
     values += static_cast<std::size_t>(a->size());
   return values * sizeof(T);
 }
@@ -627,7 +627,8 @@ template <class Batch>
 auto copy_parameters(Batch& b) {
   return std::array{&b.state.tau, &b.state.wrench, &b.state.inertia, &b.state.gravity, &b.target_q, &b.target_v,
                     &b.drive_stiffness, &b.drive_damping, &b.joint_damping, &b.armature, &b.joint_friction, &b.ground,
-                    &b.ground_friction, &b.initial_q, &b.initial_v, &b.fault, &b.actuator_command, &b.actuator_state};
+                    &b.ground_friction, &b.initial_q, &b.initial_v, &b.fault, &b.actuator_command, &b.actuator_state,
+                    &b.actuator_strength};
 }
 
 // What Simulator::contacts and contact_overflow report of a copy's last
@@ -761,19 +762,39 @@ void Simulator::set_torque(int copy, const Eigen::VectorXd& tau) {
   visit([&](auto& b) { b.state.tau.set(copy, tau); });
 }
 
+void Simulator::check_per_actuator(const Eigen::VectorXd& values, const char* what) const {
+  const auto count = static_cast<Eigen::Index>(options_.actuators.size());
+  require(values.size() == count, [&] {
+    return std::string(what) + ": expects " + std::to_string(count) + " values (one per actuator), got " +
+           std::to_string(values.size());
+  });
+}
+
 void Simulator::set_actuator_torques(int copy, const Eigen::VectorXd& torques) {
   check_copy(copy, "set_actuator_torques");
-  const auto count = static_cast<Eigen::Index>(options_.actuators.size());
-  require(torques.size() == count, [&] {
-    return "set_actuator_torques: expects " + std::to_string(count) + " values (one per actuator), got " +
-           std::to_string(torques.size());
-  });
+  check_per_actuator(torques, "set_actuator_torques");
   visit([&](auto& b) { b.actuator_command.set(copy, torques); });
 }
 
 Eigen::VectorXd Simulator::actuator_torques(int copy) const {
   check_copy(copy, "actuator_torques");
   return visit([&](auto& b) { return Eigen::VectorXd(b.actuator_command.get(copy)); });
+}
+
+void Simulator::set_actuator_strength(int copy, const Eigen::VectorXd& strength) {
+  check_copy(copy, "set_actuator_strength");
+  check_per_actuator(strength, "set_actuator_strength");
+  for (Eigen::Index a = 0; a < strength.size(); ++a)
+    require(finite_in(options_.precision, strength[a]) && strength[a] > 0, [&] {
+      return "set_actuator_strength: actuator " + std::to_string(a) + " (" + options_.actuators[a].name +
+             "): the strength must be finite and > 0, got " + number_text(strength[a]);
+    });
+  visit([&](auto& b) { b.actuator_strength.set(copy, strength); });
+}
+
+Eigen::VectorXd Simulator::actuator_strength(int copy) const {
+  check_copy(copy, "actuator_strength");
+  return visit([&](auto& b) { return Eigen::VectorXd(b.actuator_strength.get(copy)); });
 }
 
 std::vector<ActuatorState> Simulator::actuator_states(int copy) const {

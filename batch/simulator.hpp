@@ -87,6 +87,9 @@ struct StepBatch {
   // motor's speed and torque (3 per actuator; zero after a reset, or a
   // reset_on_fault restart).
   BatchArray<T> actuator_command, actuator_state;
+  // Per actuator, each copy's strength: the share of the motor's torque that
+  // reaches the joints (1 unless set_actuator_strength or randomisation).
+  BatchArray<T> actuator_strength;
   // With StepOptions::record_motion, the motion of the last step's last
   // pipeline run, from which Simulator::incoming_joint_forces and
   // link_accelerations find theirs: the run's start state (nq, nv); its
@@ -145,8 +148,8 @@ struct Contact {
 // other way round it is dropped), and the
 // copy's inputs and per-copy parameters (torques, wrenches, inertial
 // parameters, gravity, drive targets and gains, joint damping, armature,
-// ground, initial state, fault, actuator commands and the motors' last
-// states), in that order in `parameters`; and what
+// ground, initial state, fault, actuator commands, the motors' last states
+// and the actuators' strengths), in that order in `parameters`; and what
 // contacts() and contact_overflow() report of its last step (the points'
 // positions, normals and separations, the count, the dropped, the overflow
 // steps), in that order in `contact_report`. Restoring a snapshot, into
@@ -271,6 +274,11 @@ class Simulator {
   // region in the step (batch/actuators.hpp). Persists like set_torque's.
   void set_actuator_torques(int copy, const Eigen::VectorXd& torques);
   Eigen::VectorXd actuator_torques(int copy) const;
+  // (actuators) each actuator's strength in this copy, > 0: the joints get
+  // strength x G tau_m (legged_gym's motor strength: weaker or stronger
+  // motors and transmissions per copy); 1 by default.
+  void set_actuator_strength(int copy, const Eigen::VectorXd& strength);
+  Eigen::VectorXd actuator_strength(int copy) const;
   // Each actuator's command, motor speed and torque in the copy's last
   // step (zero before the first and after a reset), in StepOptions::actuators' order.
   std::vector<ActuatorState> actuator_states(int copy) const;
@@ -386,6 +394,8 @@ class Simulator {
   struct MotionScratch;
   MotionScratch& motion_scratch() const;
   void check_velocity(const Eigen::VectorXd& v, const char* what) const;
+  // One value per actuator, or std::invalid_argument naming `what`.
+  void check_per_actuator(const Eigen::VectorXd& values, const char* what) const;
   void check_per_dof(const Eigen::VectorXd& values, const char* what) const;  // nv finite values >= 0
   void check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const;
   // Invalidates the plan when a copy's drive gains, damping or wrenches need

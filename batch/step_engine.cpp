@@ -103,6 +103,7 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     if (actuated[k]) jm_.actuated.push_back(k);
   const int motors = static_cast<int>(options.actuators.size());
   batch_.actuator_command = BatchArray<T>(copies, motors, kWidth);
+  batch_.actuator_strength = BatchArray<T>(copies, motors, kWidth, T(1));
   batch_.actuator_state = BatchArray<T>(copies, 3 * motors, kWidth);
   set_plan(plan);
   if (options.conserve_linear_momentum) {
@@ -423,7 +424,8 @@ void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
                                     joint_parameter(B.drive_damping, scene_drive_damping_, block),
                                     joint_parameter(B.joint_damping, scene_damping_, block),
                                     joint_parameter(B.armature, scene_armature_, block),
-                                    B.actuator_command.block(block)};
+                                    B.actuator_command.block(block),
+                                    B.actuator_strength.block(block)};
   for (int k = 0; k < nv; ++k) s.u0[k] = lane::load<L>(v + k * W);
 
   if (options_.integrator == Integrator::RK4) {

@@ -184,6 +184,11 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   sim_.set_joint_damping(c, damping);
   sim_.set_armature(c, armature);
   sim_.set_joint_friction(c, friction);
+  Eigen::VectorXd& strength = scratch.strength;
+  strength.resize(static_cast<Eigen::Index>(options_.step.actuators.size()));
+  for (Eigen::Index a = 0; a < strength.size(); ++a)
+    strength[a] = value(&Randomization::actuator_strength_scale, static_cast<int>(a));
+  sim_.set_actuator_strength(c, strength);
   Eigen::Vector3d gravity = m.gravity;
   for (int axis = 0; axis < 3; ++axis) gravity[axis] += value(&Randomization::gravity_offset, axis);
   sim_.set_gravity(c, gravity);

@@ -211,7 +211,7 @@ class VecEnv {
   std::vector<std::uint32_t> reset_count_;
   std::int64_t steps_ = 0;
   struct ResetScratch {  // randomize's vectors, kept so that a reset allocates nothing
-    Eigen::VectorXd kp, kd, damping, armature, friction, q, v, zero;
+    Eigen::VectorXd kp, kd, damping, armature, friction, strength, q, v, zero;
   } reset_scratch_;
 };
 

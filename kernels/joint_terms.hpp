@@ -73,13 +73,15 @@ struct JointTermInputs {
   const T* damping = nullptr;   // (nv) kd
   const T* joint_damping = nullptr;  // (nv) viscous damping coefficient
   const T* armature = nullptr;  // (nv) rotor inertia, joins D with w
-  const T* actuator_command = nullptr;  // (motors) tau_a, at the driven joints
+  const T* actuator_command = nullptr;   // (motors) tau_a, at the driven joints
+  const T* actuator_strength = nullptr;  // (motors) the share of tau_m reaching the joints
 };
 
 // The actuators' joint torques at the velocity v (batch/actuators.hpp):
 // each motor's speed, its commanded torque clipped to the operating region
-// (the peak torque, then the voltage lines), and G tau_m on the driven DOF,
-// r_c tau_m on each coupled one, summed into s.actuation.
+// (the peak torque, then the voltage lines), and, with the copy's strength
+// s, s G tau_m on the driven DOF, s r_c tau_m on each coupled one, summed
+// into s.actuation.
 template <class L>
 void actuator_torques(const JointTermModel<lane::scalar_t<L>>& jm, const JointTermInputs<lane::scalar_t<L>>& in,
                       JointTermScratch<L>& s) {
@@ -99,8 +101,10 @@ void actuator_torques(const JointTermModel<lane::scalar_t<L>>& jm, const JointTe
     }
     s.motor_speed[m] = omega;
     s.motor_torque[m] = torque;
-    s.actuation[motor.dof] = lane::fmadd(gear, torque, s.actuation[motor.dof]);
-    for (const auto& [dof, ratio] : motor.couplings) s.actuation[dof] = lane::fmadd(L(ratio), torque, s.actuation[dof]);
+    const L delivered = lane::load<L>(in.actuator_strength + m * W) * torque;
+    s.actuation[motor.dof] = lane::fmadd(gear, delivered, s.actuation[motor.dof]);
+    for (const auto& [dof, ratio] : motor.couplings)
+      s.actuation[dof] = lane::fmadd(L(ratio), delivered, s.actuation[dof]);
   }
 }
 

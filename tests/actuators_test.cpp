@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <set>
 
 namespace lockstep::test {
 namespace {
@@ -198,6 +199,48 @@ TEST(Actuators, SnapshotsCarryCommandsAndStatesAndResetsClearTheStates) {
   EXPECT_EQ(sim.actuator_states(1)[0].motor_torque, 0.0);
   EXPECT_EQ(sim.actuator_states(1)[0].motor_speed, 0.0);
   EXPECT_EQ(sim.actuator_torques(1), Eigen::Vector2d(30.0, -4.0)) << "a command persists, as set_torque's does";
+}
+
+// A copy's strength scales what reaches the joints, not the motor's own
+// torque (its operating region is the same motor's).
+TEST(Actuators, StrengthScalesWhatReachesTheJoints) {
+  const Model model = spinner(0.1);
+  Simulator sim(model, 2, actuated(Precision::Double, {motor(0)}));
+  EXPECT_EQ(sim.actuator_strength(1), Eigen::VectorXd::Ones(1));
+  sim.set_actuator_strength(1, Eigen::VectorXd::Constant(1, 0.8));
+  for (int c = 0; c < 2; ++c) sim.set_actuator_torques(c, Eigen::VectorXd::Constant(1, 30.0));  // clipped at the peak
+  sim.step();
+  EXPECT_EQ(sim.actuator_states(1)[0].motor_torque, 1.5);
+  EXPECT_NEAR(sim.applied_torque(0).actuators[0], 15.0, 1e-14);
+  EXPECT_NEAR(sim.applied_torque(1).actuators[0], 0.8 * 15.0, 1e-14);
+  EXPECT_NEAR(sim.v(1)[0], 0.002 * 12.0 / 0.1, 1e-12);
+  EXPECT_THROW_WITH(sim.set_actuator_strength(0, Eigen::VectorXd::Constant(1, 0.0)), std::invalid_argument,
+                    "set_actuator_strength: actuator 0 (motor): the strength must be finite and > 0, got 0");
+  EXPECT_THROW_WITH(sim.set_actuator_strength(0, Eigen::VectorXd::Ones(2)), std::invalid_argument,
+                    "set_actuator_strength: expects 1 values (one per actuator), got 2");
+}
+
+// VecEnv draws each copy's strength per actuator at every reset from
+// actuator_strength_scale, as it draws the other parameters.
+TEST(Actuators, VecEnvDrawsTheStrengthsAtReset) {
+  const Model model = spinner(0.1);
+  VecEnvOptions o;
+  o.step = actuated(Precision::Float, {motor(0, "a"), motor(0, "b")});
+  o.randomization.actuator_strength_scale = {0.8, 1.2};
+  o.seed = 11;
+  VecEnv env(model, 20, o);
+  env.reset();
+  std::set<double> seen;
+  for (int c = 0; c < 20; ++c) {
+    const Eigen::VectorXd s = env.simulator().actuator_strength(c);
+    for (int a = 0; a < 2; ++a) {
+      EXPECT_GE(s[a], 0.8f);
+      EXPECT_LE(s[a], 1.2f);
+      EXPECT_EQ(s[a], static_cast<float>(draw(o.randomization, &Randomization::actuator_strength_scale, o.seed, c, 0, a)));
+      seen.insert(s[a]);
+    }
+  }
+  EXPECT_EQ(seen.size(), 40u) << "every copy and actuator draws its own";
 }
 
 // A state is the last evaluation's: its command is the one that

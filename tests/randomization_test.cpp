@@ -51,7 +51,7 @@ TEST(Randomization, DrawsAreUniformInTheRangeAndDependOnEveryCounterWord) {
 TEST(Randomization, DefaultIsIdentityAndEveryFieldIsNamed) {
   Randomization r;
   EXPECT_TRUE(r.is_identity());
-  EXPECT_EQ(randomization_fields().size(), 14u);
+  EXPECT_EQ(randomization_fields().size(), 15u);
   for (const RandomizationField& f : randomization_fields()) {
     Randomization changed;
     (changed.*f.range).high += 0.5;
