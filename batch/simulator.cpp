@@ -200,7 +200,7 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
   require(o.substeps >= 1, "StepOptions::substeps must be at least 1, got " + std::to_string(o.substeps));
   require(enumerated(o.precision, Precision::Double), not_enumerated("StepOptions::precision", o.precision));
   require(enumerated(o.solver, SolverType::TGS), not_enumerated("StepOptions::solver", o.solver));
-  require(enumerated(o.integrator, Integrator::RK4), not_enumerated("StepOptions::integrator", o.integrator));
+  require(enumerated(o.integrator, Integrator::ExplicitEuler), not_enumerated("StepOptions::integrator", o.integrator));
   require(enumerated(o.lanes, Lanes::Scalar), not_enumerated("StepOptions::lanes", o.lanes));
   for (int stage = 0; stage < kStageCount; ++stage)
     require(enumerated(o.stages[stage], StageMode::Off),
@@ -483,7 +483,10 @@ std::vector<StiffDrive> Simulator::stiff_drives() const {
 std::vector<std::string> Simulator::warnings() const {
   std::vector<std::string> lines;
   std::string fast_modes;
-  if (options_.integrator != Integrator::SemiImplicitEuler && copies() > 0) {
+  // (explicit Euler takes the joint effects as semi-implicit Euler does)
+  const bool semi_implicit_forces =
+      options_.integrator == Integrator::SemiImplicitEuler || options_.integrator == Integrator::ExplicitEuler;
+  if (!semi_implicit_forces && copies() > 0) {
     const double bound = options_.integrator == Integrator::RK4 ? kRk4Bound : kTrapezoidRingBound;
     fast_modes = describe_fast_joint_modes(
         *model_, fast_joint_modes(*model_, dofs_, q(0), options_.dt / options_.substeps, bound), options_.integrator);

@@ -528,17 +528,21 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
 // Positions move by velocity * step. Copies whose rows act this step move
 // by what the solver leaves: PGS by v1, so that the speculative limit rows
 // hold exactly, TGS by its substeps' displacement. The others move by the
-// integrator's velocity: semi-implicit Euler v1, trapezoid (v0 + v1)/2.
+// integrator's velocity: semi-implicit Euler v1, explicit Euler v0,
+// trapezoid (v0 + v1)/2.
 // TGS returns a displacement (the scale 1), the others a velocity (h).
 template <class L>
 lane::scalar_t<L> StepEngine<L>::position_velocity(const Scratch& s, T h, T* velocity) const {
   constexpr std::size_t W = lane::width_v<L>;
   const bool tgs = options_.solver == SolverType::TGS;
   const bool trapezoid = options_.integrator == Integrator::Trapezoid;
+  const bool explicit_euler = options_.integrator == Integrator::ExplicitEuler;
   const L scale(tgs ? h : T(1));
   for (int k = 0; k < km_.nv; ++k) {
     const L acting = tgs ? s.displacement[k] : s.u1[k];
-    const L resting = trapezoid ? scale * (L(T(0.5)) * (s.u0[k] + s.u1[k])) : scale * s.u1[k];
+    const L resting = trapezoid        ? scale * (L(T(0.5)) * (s.u0[k] + s.u1[k]))
+                      : explicit_euler ? scale * s.u0[k]
+                                       : scale * s.u1[k];
     lane::store(lane::select(s.rows_at_rest, resting, acting), velocity + k * W);
   }
   return tgs ? T(1) : h;
@@ -680,7 +684,7 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   // Mt's factors: from the step's one ABA at q (semi-implicit Euler), or,
   // where the trapezoid's second ABA ran at its predicted state, by CRBA
   T* H = factors(s);
-  if (options_.integrator == Integrator::SemiImplicitEuler)
+  if (options_.integrator == Integrator::SemiImplicitEuler || options_.integrator == Integrator::ExplicitEuler)
     ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);

@@ -9,6 +9,7 @@ const char* integrator_name(Integrator integrator) {
     case Integrator::SemiImplicitEuler: return "semi-implicit Euler";
     case Integrator::Trapezoid: return "trapezoid";
     case Integrator::RK4: return "RK4";
+    case Integrator::ExplicitEuler: return "explicit Euler";
   }
   return "?";
 }

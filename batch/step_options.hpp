@@ -15,7 +15,12 @@
 namespace lockstep {
 
 enum class SolverType { PGS, TGS };
-enum class Integrator { SemiImplicitEuler, Trapezoid, RK4 };
+// How positions and velocities advance (docs/stability.md, section 7):
+// semi-implicit Euler moves the positions by the new velocity, explicit
+// Euler by the old one (RaiSim's EXPLICIT_EULER: the same forces, the
+// position update one step behind), the trapezoid by their mean, RK4 by
+// its four stages.
+enum class Integrator { SemiImplicitEuler, Trapezoid, RK4, ExplicitEuler };
 // Scalar runs the reference path, one copy per block; Simd one copy per lane.
 enum class Lanes { Simd, Scalar };
 

@@ -38,7 +38,8 @@ struct Token {
 constexpr Token<SolverType> kSolvers[] = {{"pgs", SolverType::PGS}, {"tgs", SolverType::TGS}};
 constexpr Token<Integrator> kIntegrators[] = {{"semi_implicit_euler", Integrator::SemiImplicitEuler},
                                               {"trapezoid", Integrator::Trapezoid},
-                                              {"rk4", Integrator::RK4}};
+                                              {"rk4", Integrator::RK4},
+                                              {"explicit_euler", Integrator::ExplicitEuler}};
 constexpr Token<Precision> kPrecisions[] = {{"float", Precision::Float}, {"double", Precision::Double}};
 constexpr Token<Lanes> kLanes[] = {{"simd", Lanes::Simd}, {"scalar", Lanes::Scalar}};
 constexpr Token<DriveType> kDriveTypes[] = {{"force", DriveType::Force}, {"acceleration", DriveType::Acceleration}};

@@ -324,7 +324,8 @@ TEST(Simulator, AppliedTorqueIsWhatActedWithEveryIntegrator) {
   dofs[0].drive_stiffness = 10.0, dofs[0].drive_damping = 1.0;
   dofs[0].damping = 0.5;
   dofs[0].spring_stiffness = 3.0, dofs[0].spring_rest = 0.1;
-  for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::Trapezoid, Integrator::RK4})
+  for (Integrator integrator :
+       {Integrator::SemiImplicitEuler, Integrator::Trapezoid, Integrator::RK4, Integrator::ExplicitEuler})
     for (int substeps : {1, 3}) {
       StepOptions o = double_options(0.05);
       o.integrator = integrator;

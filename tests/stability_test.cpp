@@ -422,8 +422,8 @@ TEST(StabilityFreeBody, QuaternionStaysUnitOverAMillionSteps) {
 // the world forces. The box above spins about its minor axis at 10 rad/s
 // (dt = 2 ms, h w = 0.02, 500 steps): thrown at 1 m/s without gravity it
 // must fly straight at 1 m/s; dropped spinning about its major axis it must
-// fall with g t and no sideways drift. Semi-implicit Euler and the
-// trapezoid are exact here up to round-off (measured, double: 4e-15 of the
+// fall with g t and no sideways drift. Semi-implicit Euler, explicit Euler
+// and the trapezoid are exact here up to round-off (measured, double: 4e-15 of the
 // speed; bound 1e-12); RK4 integrates the body-frame velocity, whose turn
 // it follows to fourth order: (h w)^5 / 120 per step, 1.3e-8 over 500 steps
 // (measured 1.3e-8 thrown, 7e-9 falling; bound 1e-7). Float: the round-off
@@ -435,7 +435,8 @@ TEST(StabilityFreeBody, SpinningBoxKeepsItsWorldVelocity) {
   const Model& model = spin_box();
   const double dt = 2e-3;
   const int steps = 500;
-  for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::Trapezoid, Integrator::RK4}) {
+  for (Integrator integrator :
+       {Integrator::SemiImplicitEuler, Integrator::Trapezoid, Integrator::RK4, Integrator::ExplicitEuler}) {
     for (Precision precision : {Precision::Double, Precision::Float}) {
       StepOptions o;
       o.dt = dt;
