@@ -34,7 +34,7 @@ void validate_actuators(const Model& model, const std::vector<Actuator>& actuato
     require(!a.name.empty(), "actuator " + std::to_string(i) + ": has no name");
     require(names.insert(a.name).second, where + "the name is another actuator's");
     require_driven_dof(model, a.dof, where, "DOF");
-    const char* finite = precision == Precision::Float ? "finite in float" : "finite";
+    const std::string finite = finite_word(precision);
     auto positive = [&](double x, const char* field) {
       require(finite_in(precision, x) && x > 0,
               [&] { return where + field + " must be " + finite + " and > 0, got " + number_text(x); });
@@ -48,12 +48,8 @@ void validate_actuators(const Model& model, const std::vector<Actuator>& actuato
       return where + "peak_torque must be > 0 and " + finite + " (+inf for none), got " + number_text(a.peak_torque);
     });
     // the constants the step takes: each may be in range while these are not
-    auto derived = [&](double value, const char* field) {
-      require(finite_in(precision, value) && value > 0,
-              [&] { return where + field + " must be " + finite + " and > 0, got " + number_text(value); });
-    };
-    derived(a.stall_torque(), "the stall torque K_t V_bus / R");
-    derived(a.back_emf_damping(), "the back-EMF damping K_t / (R K_v)");
+    positive(a.stall_torque(), "the stall torque K_t V_bus / R");
+    positive(a.back_emf_damping(), "the back-EMF damping K_t / (R K_v)");
     std::set<int> coupled;
     for (const auto& coupling : a.couplings) {
       const int dof = coupling.first;

@@ -17,8 +17,8 @@
 // within +-tau_peak (|omega| > (tau_stall + tau_peak) / b), the back-EMF
 // drives a current the driver cannot limit, and the motor brakes with the
 // least torque the voltage allows. Without the region enforced,
-// tau_m = tau_a / G. The
-// actuator adds G tau_m to the driven DOF and r_c tau_m to each coupled
+// tau_m = tau_a / G. With the copy's strength s (1 unless set), the
+// actuator adds s G tau_m to the driven DOF and s r_c tau_m to each coupled
 // one, after the effort clamp of feedforward + PD and unclamped by it
 // (RaiSim: effort limits do not clip actuator torques, and the operating
 // region clips nothing else). The torque is explicit, evaluated at the

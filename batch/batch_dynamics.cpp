@@ -136,7 +136,7 @@ void BatchDynamics<L>::inverse_dynamics(const BatchState<Scalar>& s, BatchArray<
     check(out, s.copies(), km_.nv, #NAME);                                                 \
     for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {                            \
       joint_transforms<L>(km_, s.q.block(b), ws);                                          \
-      if (USE_WRENCH || (USE_GRAVITY && km_.gravity_switched_off)) world_transforms<L>(km_, ws); \
+      if (km_.needs_world(USE_WRENCH, USE_GRAVITY)) world_transforms<L>(km_, ws);               \
       BlockInputs<Scalar> in;                                                              \
       in.inertia = s.inertia.block(b);                                                     \
       if (USE_V) in.v = s.v.block(b);                                                      \

@@ -143,7 +143,6 @@ std::string not_enumerated(const char* field, E value) {
 }
 
 // What "finite" means in messages: float's range too.
-std::string finite_word(Precision p) { return p == Precision::Float ? "finite (in float, within 3.4e38)" : "finite"; }
 
 // Symmetric positive semidefinite, round-off aside: asymmetry and the
 // smallest eigenvalue within 1e-12 of the largest diagonal entry (or of 1).
@@ -335,7 +334,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
       (plan.hard_limits || plan.velocity_limits || plan.coulomb_friction || plan.contacts))
     throw std::invalid_argument(
         "StepOptions::integrator RK4 integrates scenes without solver rows, and this scene has " + rows_summary() +
-        ": use SemiImplicitEuler or Trapezoid, or force those stages off");
+        ": use SemiImplicitEuler, Trapezoid or ExplicitEuler, or force those stages off");
   auto start = [&](auto engine) {  // the engine, and where its batch lives
     if constexpr (std::is_same_v<std::decay_t<decltype(engine->batch())>, StepBatch<float>>)
       float_batch_ = &engine->batch();
@@ -790,7 +789,7 @@ void Simulator::set_actuator_strength(int copy, const Eigen::VectorXd& strength)
   for (Eigen::Index a = 0; a < strength.size(); ++a)
     require(finite_in(options_.precision, strength[a]) && strength[a] > 0, [&] {
       return "set_actuator_strength: actuator " + std::to_string(a) + " (" + options_.actuators[a].name +
-             "): the strength must be finite and > 0, got " + number_text(strength[a]);
+             "): the strength must be " + finite_word(options_.precision) + " and > 0, got " + number_text(strength[a]);
     });
   visit([&](auto& b) { b.actuator_strength.set(copy, strength); });
 }

@@ -127,7 +127,7 @@ struct AppliedTorque {
   Eigen::VectorXd passive;   // damping, springs, soft limits, Stribeck friction
   Eigen::VectorXd friction;  // Coulomb friction impulse / dt
   Eigen::VectorXd limits;    // position and velocity limit impulses / dt
-  Eigen::VectorXd actuators; // the actuators' torques on the joints (G tau_m, r_c tau_m)
+  Eigen::VectorXd actuators; // the actuators' torques on the joints (strength x G tau_m, strength x r_c tau_m)
 };
 
 // One contact point of a copy after a step (Simulator::contacts).

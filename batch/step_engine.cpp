@@ -348,7 +348,7 @@ template <class L>
 void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
                                       JointTermInputs<T> terms_in, JointTerms joint_terms, Scratch& s) {
   joint_transforms<L>(km_, q, s.ws);
-  if (plan_.wrenches || km_.gravity_switched_off) world_transforms<L>(km_, s.ws);
+  if (km_.needs_world(plan_.wrenches)) world_transforms<L>(km_, s.ws);
   terms_in.q = q;
   terms_in.v = v;
   if (joint_terms == JointTerms::AtThisState) joint_term_prepass<L>(km_, jm_, joint_term_weight(h), terms_in, s.terms);

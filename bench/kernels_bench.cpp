@@ -64,7 +64,7 @@ void run_kernel(benchmark::State& bench, const ModelChoice& choice, Kernel kerne
       in.wrench = nullptr;
       joint_transforms<L>(km, in.q, ws);
       // the dynamics read the bodies' world poses where gravity is switched off
-      if (kernel != Kernel::Fk && km.gravity_switched_off) world_transforms<L>(km, ws);
+      if (kernel != Kernel::Fk && km.needs_world(false)) world_transforms<L>(km, ws);
       switch (kernel) {
         case Kernel::Fk:
           world_transforms<L>(km, ws);

@@ -220,8 +220,8 @@ struct RawJoint {
 
 // Gazebo's link extension <gazebo reference="link"> with <gravity> or the
 // older <turnGravityOff>, each an SDF bool (true/false/1/0, any case,
-// surrounding whitespace ignored): whether gravity acts on each link the
-// file switches. A reference naming no link is an error only where it
+// whitespace around it ignored): whether gravity acts on each link the
+// file switches, once per link. A reference naming no link is an error only where it
 // carries one of these elements (Gazebo's joint extensions share the tag).
 std::map<std::string, bool> gravity_switches(const std::string& src, const XMLElement* robot,
                                              const std::map<std::string, XMLElement*>& links) {
@@ -235,13 +235,14 @@ std::map<std::string, bool> gravity_switches(const std::string& src, const XMLEl
       if (!reference) throw ModelError(where + " outside a <gazebo reference=\"link\"> element");
       if (!links.count(reference)) throw ModelError(where + ": <gazebo reference=\"" + reference + "\"> names no link");
       const std::string written = e->GetText() ? e->GetText() : "";
-      std::string text;
-      for (char c : written)
-        if (!std::isspace(static_cast<unsigned char>(c))) text += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      const auto first = written.find_first_not_of(" \t\r\n"), last = written.find_last_not_of(" \t\r\n");
+      std::string text = first == std::string::npos ? "" : written.substr(first, last - first + 1);
+      for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
       const bool truth = text == "true" || text == "1";
       if (!truth && text != "false" && text != "0")
         throw ModelError(where + ": expected true, false, 1 or 0, got '" + written + "'");
-      gravity[reference] = truth != (std::string(tag) == "turnGravityOff");
+      if (!gravity.emplace(reference, truth != (std::string(tag) == "turnGravityOff")).second)
+        throw ModelError(where + ": link '" + reference + "' has its gravity switched already");
     }
   }
   return gravity;
@@ -254,22 +255,13 @@ std::map<std::string, bool> gravity_switches(const std::string& src, const XMLEl
 void apply_gravity_switches(ArticulationSpec& spec, const std::map<std::string, bool>& switches,
                             const std::string& prefix, std::vector<std::string>& warnings) {
   const int n = static_cast<int>(spec.links.size());
-  std::map<std::string, int> index;
-  std::vector<int> head(n, 0);  // the link a body is named after
-  std::vector<bool> on_world(n, !spec.floating_base);
+  const std::vector<int> head = body_head_links(spec);  // -1: fixed to the world
   std::map<int, std::pair<bool, std::string>> body_switch;  // head -> (gravity, the link that set it)
   for (int i = 0; i < n; ++i) {
-    LinkSpec& link = spec.links[i];
-    index[link.name] = i;
-    if (i > 0) {
-      const int parent = index.at(link.parent);
-      const bool fixed = link.joint.type == JointType::Fixed;
-      head[i] = fixed ? head[parent] : i;
-      on_world[i] = fixed && on_world[parent];
-    }
+    const LinkSpec& link = spec.links[i];
     const auto it = switches.find(link.name.substr(prefix.size()));
     if (it == switches.end()) continue;
-    if (on_world[i]) {
+    if (head[i] < 0) {
       warnings.push_back(spec.source + ":" + std::to_string(link.source_line) + ": link '" + link.name +
                          "': Gazebo gravity switch ignored: the link is fixed to the world, gravity moves nothing there");
       continue;

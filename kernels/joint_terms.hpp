@@ -1,5 +1,6 @@
 // The joint effects of one simulation step over a block: PD drives, joint
-// damping, springs, spring-damper limits and smooth (Stribeck) friction.
+// damping, springs, spring-damper limits, smooth (Stribeck) friction and
+// actuators.
 //
 // Every stiff term is integrated implicitly (backward Euler; dt below is the
 // weight the integrator passes, StepEngine::joint_term_weight: the step h
@@ -211,7 +212,7 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
       if (spherical && jm.soft_limits)
         add_soft_limit(lane::fmadd(h, v, rotation[i]), v, jm.lower[k], jm.upper[k], jm.limit_stiffness[k],
                        jm.limit_damping[k], h, h2, passive, passive_implicit);
-      if (!spherical) {  // springs, soft limits and Stribeck: 1-DOF joints
+      if (!spherical) {  // springs, soft limits and Stribeck of 1-DOF joints
         const L q = lane::load<L>(in.q + qo * W);
         const L q_end = lane::fmadd(h, v, q);  // q0 + dt v0
         if (jm.springs) {
@@ -266,8 +267,7 @@ struct StepJointTerms {
     const L command = lane::clamp(lane::load<L>(tau_ff + dof * W) + pd, -bound, bound);
     s.command[dof] = command;
     s.drive_implicit[dof] = w_drive;
-    tau = command + s.passive[dof];
-    if (!jm.motors.empty()) tau = tau + s.actuation[dof];
+    tau = command + s.passive[dof] + s.actuation[dof];  // zero without actuators
     const L w = w_drive + s.passive_implicit[dof] + armature_k;
     s.implicit_diagonal[dof] = w;
     return w;

@@ -56,6 +56,9 @@ struct KernelModel {
   // Some body has gravity switched off: the kernels that take gravity then
   // need ws.world (body_weight), as they do for wrenches.
   bool gravity_switched_off = false;
+  // Whether RNEA and ABA read ws.world: with wrenches, or with gravity where
+  // some body has it switched off.
+  bool needs_world(bool wrenches, bool gravity = true) const { return wrenches || (gravity && gravity_switched_off); }
   std::vector<Handoff> body_handoff;           // (nbody) see Handoff
   std::vector<std::uint8_t> body_takes_carry;  // (nbody) the next body visited hands over by Carry
   std::vector<std::uint8_t> body_takes_sum;    // (nbody) some child hands over by Store / Add

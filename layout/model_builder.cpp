@@ -13,6 +13,19 @@
 
 namespace lockstep {
 
+std::vector<int> body_head_links(const ArticulationSpec& spec) {
+  const int n = static_cast<int>(spec.links.size());
+  std::unordered_map<std::string, int> index;
+  std::vector<int> heads(n, spec.floating_base ? 0 : -1);
+  for (int i = 0; i < n; ++i) {
+    const LinkSpec& link = spec.links[i];
+    index.emplace(link.name, i);
+    if (i == 0) continue;
+    heads[i] = link.joint.type != JointType::Fixed ? i : heads[index.at(link.parent)];
+  }
+  return heads;
+}
+
 namespace {
 
 bool is_moving(JointType type) {
@@ -280,19 +293,18 @@ int ModelBuilder::add_articulation(const ArticulationSpec& spec_in) {
     throw ModelError(src + ": floating articulation '" + spec.name + "' has no mass");
 
   // Tolerated imperfections.
-  std::vector<bool> on_world(n, false);
-  on_world[0] = !spec.floating_base;
-  for (int i = 1; i < n; ++i) on_world[i] = on_world[parent[i]] && spec.links[i].joint.type == JointType::Fixed;
+  const std::vector<int> heads = body_head_links(spec);
+  std::vector<bool> on_world(n);
+  for (int i = 0; i < n; ++i) on_world[i] = heads[i] < 0;
   // Gravity is switched per moving body: a link with mass fused into one
   // must agree with the link the body is named after, whose switch the body
   // takes (a massless link has no weight, and links fused into the world
   // carry nothing that gravity could move).
-  std::vector<int> body_link(n, 0);
   for (int i = 1; i < n; ++i) {
     const LinkSpec& link = spec.links[i];
-    body_link[i] = is_moving(link.joint.type) ? i : body_link[parent[i]];
-    const LinkSpec& head = spec.links[body_link[i]];
-    if (!on_world[i] && link.inertial.mass > 0 && link.gravity != head.gravity)
+    if (on_world[i]) continue;
+    const LinkSpec& head = spec.links[heads[i]];
+    if (link.inertial.mass > 0 && link.gravity != head.gravity)
       throw ModelError(link_ctx(spec, link) + ": gravity " + (link.gravity ? "on" : "off") +
                        ", but it is fixed to link '" + head.name + "', which has gravity " +
                        (head.gravity ? "on" : "off") +

@@ -75,6 +75,12 @@ struct ArticulationSpec {
   std::vector<LinkSpec> links;  // parent-first
 };
 
+// For each link of an articulation listed parent-first (parents known):
+// the index of the link its moving body is named after (the link itself on
+// a moving joint, or a floating root), the link it is fixed to otherwise;
+// -1 for a link fixed to the world.
+std::vector<int> body_head_links(const ArticulationSpec& spec);
+
 struct BuildOptions {
   // Turn the warnings for tolerated imperfections (massless frames, point
   // masses, triangle-inequality violations) into errors.

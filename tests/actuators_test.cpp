@@ -103,20 +103,28 @@ TEST(Actuators, CouplingsDriveFurtherJoints) {
   EXPECT_NEAR(applied[1], -0.5 * tau, 1e-15);
 }
 
-// RaiSim: the effort limit clamps feedforward + PD, not the actuators.
+// RaiSim: the effort limit clamps feedforward + PD, not the actuators; with
+// every integrator (the motor's torque stays inside its region at the
+// speeds of every stage, so each evaluation gives the same).
 TEST(Actuators, TheEffortLimitClipsTheFeedforwardNotTheActuator) {
   const Model model = spinner(0.1);
   std::vector<DofSettings> dofs = default_dof_settings(model);
   dofs[0].max_force = 1.0;
-  Simulator sim(model, 1, actuated(Precision::Double, {motor(0)}), dofs);
-  sim.set_torque(0, Eigen::VectorXd::Constant(1, 5.0));
-  sim.set_actuator_torques(0, Eigen::VectorXd::Constant(1, 12.0));  // 1.2 N m at the motor: inside its region
-  sim.step();
-  const AppliedTorque applied = sim.applied_torque(0);
-  EXPECT_EQ(applied.drive[0], 1.0);
-  EXPECT_NEAR(applied.actuators[0], 12.0, 1e-14);
-  EXPECT_FALSE(sim.actuator_states(0)[0].clipped);
-  EXPECT_NEAR(sim.v(0)[0], 0.002 * 13.0 / 0.1, 1e-12);
+  for (Integrator integrator :
+       {Integrator::SemiImplicitEuler, Integrator::Trapezoid, Integrator::RK4, Integrator::ExplicitEuler}) {
+    StepOptions o = actuated(Precision::Double, {motor(0)});
+    o.integrator = integrator;
+    Simulator sim(model, 1, o, dofs);
+    sim.set_torque(0, Eigen::VectorXd::Constant(1, 5.0));
+    sim.set_actuator_torques(0, Eigen::VectorXd::Constant(1, 12.0));  // 1.2 N m at the motor: inside its region
+    sim.step();
+    const AppliedTorque applied = sim.applied_torque(0);
+    const std::string name = integrator_name(integrator);
+    EXPECT_NEAR(applied.drive[0], 1.0, 1e-15) << name;
+    EXPECT_NEAR(applied.actuators[0], 12.0, 1e-14) << name;
+    EXPECT_FALSE(sim.actuator_states(0)[0].clipped) << name;
+    EXPECT_NEAR(sim.v(0)[0], 0.002 * 13.0 / 0.1, 1e-12) << name;
+  }
 }
 
 // anymal_b with a motor on every leg joint (the knees coupled to their
@@ -320,18 +328,18 @@ TEST(Actuators, BadActuatorsAreRefusedByName) {
   const Bad cases[] = {
       {[](Actuator& a) { a.dof = 18; }, "actuator 0 (motor): DOF 18 outside [0, 18)"},
       {[](Actuator& a) { a.dof = 2; }, "actuator 0 (motor): DOF 2 (anymal_root[2]) is a floating base's"},
-      {[](Actuator& a) { a.gear = 0; }, "actuator 0 (motor): gear must be finite in float and > 0, got 0"},
-      {[](Actuator& a) { a.gear = -1e-9; }, "gear must be finite in float and > 0, got -1e-09"},
-      {[](Actuator& a) { a.gear = 1e39; }, "gear must be finite in float and > 0, got 1e+39"},
-      {[](Actuator& a) { a.resistance = 1e-300; }, "the stall torque K_t V_bus / R must be finite in float and > 0"},
+      {[](Actuator& a) { a.gear = 0; }, "actuator 0 (motor): gear must be finite (in float, within 3.4e38) and > 0, got 0"},
+      {[](Actuator& a) { a.gear = -1e-9; }, "gear must be finite (in float, within 3.4e38) and > 0, got -1e-09"},
+      {[](Actuator& a) { a.gear = 1e39; }, "gear must be finite (in float, within 3.4e38) and > 0, got 1e+39"},
+      {[](Actuator& a) { a.resistance = 1e-300; }, "the stall torque K_t V_bus / R must be finite (in float, within 3.4e38) and > 0"},
       {[](Actuator& a) { a.velocity_constant = 1e-300; },
-       "the back-EMF damping K_t / (R K_v) must be finite in float and > 0, got 1e+299"},
-      {[](Actuator& a) { a.resistance = -1; }, "resistance must be finite in float and > 0"},
-      {[](Actuator& a) { a.velocity_constant = Model::kInfinity; }, "velocity_constant must be finite in float and > 0"},
-      {[](Actuator& a) { a.peak_torque = 0; }, "peak_torque must be > 0 and finite in float (+inf for none)"},
+       "the back-EMF damping K_t / (R K_v) must be finite (in float, within 3.4e38) and > 0, got 1e+299"},
+      {[](Actuator& a) { a.resistance = -1; }, "resistance must be finite (in float, within 3.4e38) and > 0"},
+      {[](Actuator& a) { a.velocity_constant = Model::kInfinity; }, "velocity_constant must be finite (in float, within 3.4e38) and > 0"},
+      {[](Actuator& a) { a.peak_torque = 0; }, "peak_torque must be > 0 and finite (in float, within 3.4e38) (+inf for none)"},
       {[](Actuator& a) { a.couplings = {{7, 1.0}}; }, "coupled DOF 7 is the driven DOF"},
       {[](Actuator& a) { a.couplings = {{8, 1.0}, {8, 2.0}}; }, "coupled DOF 8 given twice"},
-      {[](Actuator& a) { a.couplings = {{8, std::nan("")}}; }, "the ratio of coupled DOF 8 must be finite in float"},
+      {[](Actuator& a) { a.couplings = {{8, std::nan("")}}; }, "the ratio of coupled DOF 8 must be finite (in float, within 3.4e38)"},
       {[](Actuator& a) { a.couplings = {{0, 1.0}}; }, "coupled DOF 0 (anymal_root[0]) is a floating base's"},
       {[](Actuator& a) { a.name = ""; }, "actuator 0: has no name"},
   };

@@ -340,7 +340,7 @@ TEST(Allocations, VecEnvStepThroughActuatorsAllocatesNothing) {
             }),
             0)
       << counted_allocation_stacks();
-  EXPECT_NE(env.observations().applied_torque.rightCols(12).norm(), 0.0) << "the motors act";
+  EXPECT_NE(env.observations().motor_torque.norm(), 0.0) << "the motors act";
 }
 
 }  // namespace

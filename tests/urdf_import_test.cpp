@@ -197,6 +197,10 @@ TEST(UrdfImportError, GazeboGravitySwitch) {
                      "expected true, false, 1 or 0, got 'off'");
   EXPECT_MODEL_ERROR(with(R"(<gazebo reference="arm"><gravity/></gazebo>)"), "<gravity>",
                      "expected true, false, 1 or 0, got ''");
+  EXPECT_MODEL_ERROR(with(R"(<gazebo reference="arm"><gravity>fal se</gravity></gazebo>)"),
+                     "expected true, false, 1 or 0, got 'fal se'");
+  EXPECT_MODEL_ERROR(with(R"(<gazebo reference="arm"><gravity>false</gravity><turnGravityOff>true</turnGravityOff></gazebo>)"),
+                     "<turnGravityOff>: link 'arm' has its gravity switched already");
   EXPECT_MODEL_ERROR(with(R"(<gazebo reference="elbow"><gravity>false</gravity></gazebo>)"),
                      "<gazebo reference=\"elbow\"> names no link");
   EXPECT_MODEL_ERROR(with(R"(<gazebo><turnGravityOff>true</turnGravityOff></gazebo>)"),
