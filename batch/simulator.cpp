@@ -195,7 +195,7 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
   // and its substeps positive in the precision the step runs in
   require(finite_in(o.precision, o.dt) && o.dt > 0 &&
               (o.precision == Precision::Double || static_cast<float>(o.dt / std::max(1, o.substeps)) > 0),
-          "StepOptions::dt must be positive and " + finite_word(o.precision) + ", got " + std::to_string(o.dt));
+          "StepOptions::dt must be positive and " + finite_word(o.precision) + ", got " + number_text(o.dt));
   require(o.substeps >= 1, "StepOptions::substeps must be at least 1, got " + std::to_string(o.substeps));
   require(enumerated(o.precision, Precision::Double), not_enumerated("StepOptions::precision", o.precision));
   require(enumerated(o.solver, SolverType::TGS), not_enumerated("StepOptions::solver", o.solver));
@@ -206,9 +206,9 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
             not_enumerated(("StepOptions::stages[" + std::to_string(stage) + "]").c_str(), o.stages[stage]));
   require(o.iterations >= 1, "StepOptions::iterations must be at least 1, got " + std::to_string(o.iterations));
   require(o.error_reduction >= 0 && o.error_reduction <= 1,
-          "StepOptions::error_reduction must lie in [0, 1], got " + std::to_string(o.error_reduction));
+          "StepOptions::error_reduction must lie in [0, 1], got " + number_text(o.error_reduction));
   require(o.warm_start >= 0 && o.warm_start <= 1,
-          "StepOptions::warm_start must lie in [0, 1], got " + std::to_string(o.warm_start));
+          "StepOptions::warm_start must lie in [0, 1], got " + number_text(o.warm_start));
   require(!o.conserve_linear_momentum || o.integrator == Integrator::SemiImplicitEuler,
           "StepOptions::conserve_linear_momentum needs the semi-implicit Euler integrator");
   require(static_cast<int>(dofs.size()) == model.nv, "Simulator: " + std::to_string(dofs.size()) +
@@ -221,7 +221,7 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
     auto non_negative = [&](double x, const char* name) {
       require(finite_in(o.precision, x) && x >= 0,
-              where + name + " must be " + finite_word(o.precision) + " and >= 0, got " + std::to_string(x));
+              where + name + " must be " + finite_word(o.precision) + " and >= 0, got " + number_text(x));
     };
     non_negative(d.drive_stiffness, "drive_stiffness");
     non_negative(d.drive_damping, "drive_damping");
@@ -233,14 +233,14 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     non_negative(d.limit_stiffness, "limit_stiffness");
     non_negative(d.limit_damping, "limit_damping");
     require(finite_in(o.precision, d.falloff_velocity) && d.falloff_velocity > 0,
-            where + "falloff_velocity must be positive, got " + std::to_string(d.falloff_velocity));
-    require(d.max_force > 0, where + "max_force must be positive (+inf for none), got " + std::to_string(d.max_force));
+            where + "falloff_velocity must be positive, got " + number_text(d.falloff_velocity));
+    require(d.max_force > 0, where + "max_force must be positive (+inf for none), got " + number_text(d.max_force));
     require(d.velocity_limit > 0,
-            where + "velocity_limit must be positive (+inf for none), got " + std::to_string(d.velocity_limit));
+            where + "velocity_limit must be positive (+inf for none), got " + number_text(d.velocity_limit));
     require(finite_in(o.precision, d.spring_rest), where + "spring_rest must be " + finite_word(o.precision));
     require(!std::isnan(d.lower) && !std::isnan(d.upper), where + "lower and upper limits must be numbers (+-inf for none)");
-    require(!(d.lower > d.upper), where + "lower limit " + std::to_string(d.lower) + " above upper " +
-                                      std::to_string(d.upper));
+    require(!(d.lower > d.upper), where + "lower limit " + number_text(d.lower) + " above upper " +
+                                      number_text(d.upper));
     require(d.lower < Model::kInfinity && d.upper > -Model::kInfinity,
             where + "a lower limit of +inf or an upper one of -inf leaves no range (-inf and +inf are none)");
     require(enumerated(d.drive_type, DriveType::Acceleration), where + not_enumerated("drive_type", d.drive_type));

@@ -686,6 +686,10 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
   std::vector<DofSettings> dofs = default_dof_settings(model);
   dofs[0].drive_damping = -1.0;
   expect_error(StepOptions(), dofs, "DOF 0 (wheel_joint): drive_damping");
+  // the value as the shortest text that reads back as it (std::to_string
+  // once printed -1e-9 as -0.000000)
+  dofs[0].drive_damping = -1e-9;
+  expect_error(StepOptions(), dofs, "drive_damping must be finite (in float, within 3.4e38) and >= 0, got -1e-09");
   expect_error(StepOptions(), std::vector<DofSettings>(3), "3 DOF settings");
   for (const double nan_limit : {0, 1}) {  // a NaN limit is no limit: refused, not ignored
     dofs = default_dof_settings(model);
