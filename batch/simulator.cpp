@@ -142,8 +142,6 @@ std::string not_enumerated(const char* field, E value) {
   return std::string(field) + " holds " + std::to_string(static_cast<int>(value)) + ", which is none of its values";
 }
 
-// What "finite" means in messages: float's range too.
-
 // Symmetric positive semidefinite, round-off aside: asymmetry and the
 // smallest eigenvalue within 1e-12 of the largest diagonal entry (or of 1).
 // The smallest eigenvalue is >= -tolerance exactly when B = I + tolerance 1
@@ -439,9 +437,8 @@ std::string Simulator::describe_plan() const {
       << ", " << solver_name(options_.solver) << " x " << options_.iterations << ", " << precision_name(options_.precision)
       << (options_.lanes == Lanes::Simd ? " SIMD lanes" : " scalar lanes") << "\n";
   out << "  kinematics and ABA with gravity: always";
-  const Model& m = *model_;
-  const auto weightless = std::count(m.body_gravity.begin(), m.body_gravity.end(), std::uint8_t(0));
-  if (weightless > 0) out << " (switched off on " << weightless << " of " << m.nbody << " bodies)";
+  const auto weightless = model_->links_without_gravity().size();
+  if (weightless > 0) out << " (switched off on " << weightless << " of " << model_->nbody << " bodies)";
   out << "\n";
   if (!options_.actuators.empty()) {
     const auto enforced = std::count_if(options_.actuators.begin(), options_.actuators.end(),
@@ -482,10 +479,7 @@ std::vector<StiffDrive> Simulator::stiff_drives() const {
 std::vector<std::string> Simulator::warnings() const {
   std::vector<std::string> lines;
   std::string fast_modes;
-  // (explicit Euler takes the joint effects as semi-implicit Euler does)
-  const bool semi_implicit_forces =
-      options_.integrator == Integrator::SemiImplicitEuler || options_.integrator == Integrator::ExplicitEuler;
-  if (!semi_implicit_forces && copies() > 0) {
+  if (!euler_velocity(options_.integrator) && copies() > 0) {
     const double bound = options_.integrator == Integrator::RK4 ? kRk4Bound : kTrapezoidRingBound;
     fast_modes = describe_fast_joint_modes(
         *model_, fast_joint_modes(*model_, dofs_, q(0), options_.dt / options_.substeps, bound), options_.integrator);

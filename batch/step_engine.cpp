@@ -681,10 +681,10 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   const T* impulse = batch_.impulse.block(block);
   for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
   for (int i = 0; i < mc; ++i) contact_rows.lambda[i] = contact_warm_start(s, i);
-  // Mt's factors: from the step's one ABA at q (semi-implicit Euler), or,
-  // where the trapezoid's second ABA ran at its predicted state, by CRBA
+  // Mt's factors: from the step's one ABA at q (both Eulers), or, where the
+  // trapezoid's second ABA ran at its predicted state, by CRBA
   T* H = factors(s);
-  if (options_.integrator == Integrator::SemiImplicitEuler || options_.integrator == Integrator::ExplicitEuler)
+  if (euler_velocity(options_.integrator))
     ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
   else
     factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);

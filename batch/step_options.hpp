@@ -21,6 +21,12 @@ enum class SolverType { PGS, TGS };
 // position update one step behind), the trapezoid by their mean, RK4 by
 // its four stages.
 enum class Integrator { SemiImplicitEuler, Trapezoid, RK4, ExplicitEuler };
+// The two Eulers share their velocity: v1 = v0 + h a from one ABA at
+// (q0, v0), the joint effects by backward Euler (w = h); they differ only
+// in the velocity their positions move by.
+inline bool euler_velocity(Integrator integrator) {
+  return integrator == Integrator::SemiImplicitEuler || integrator == Integrator::ExplicitEuler;
+}
 // Scalar runs the reference path, one copy per block; Simd one copy per lane.
 enum class Lanes { Simd, Scalar };
 

@@ -1091,8 +1091,7 @@ std::string scene_to_json(const Scene& scene) {
                            {"floating_base", bool_value(scene.floating_base)},
                            {"gravity", numbers_value(model.gravity)}};
   std::vector<json::Value> without_gravity;
-  for (int b = 0; b < model.nbody; ++b)
-    if (!model.body_gravity[b]) without_gravity.push_back(string_value(model.frame_name[model.body_frame[b]]));
+  for (const std::string& link : model.links_without_gravity()) without_gravity.push_back(string_value(link));
   if (!without_gravity.empty()) m.emplace_back("links_without_gravity", array_value(std::move(without_gravity)));
   if (env.initial_q.size() > 0 || env.initial_v.size() > 0)
     m.emplace_back("initial_state", initial_state_value(model, env));

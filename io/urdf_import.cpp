@@ -221,8 +221,9 @@ struct RawJoint {
 // Gazebo's link extension <gazebo reference="link"> with <gravity> or the
 // older <turnGravityOff>, each an SDF bool (true/false/1/0, any case,
 // whitespace around it ignored): whether gravity acts on each link the
-// file switches, once per link. A reference naming no link is an error only where it
-// carries one of these elements (Gazebo's joint extensions share the tag).
+// file switches, once per link. A reference naming no link is an error
+// only where it carries one of these elements (Gazebo's joint extensions
+// share the tag).
 std::map<std::string, bool> gravity_switches(const std::string& src, const XMLElement* robot,
                                              const std::map<std::string, XMLElement*>& links) {
   std::map<std::string, bool> gravity;

@@ -78,6 +78,13 @@ int Model::articulation_index(const std::string& name) const {
   throw_missing(name, "articulation", names);
 }
 
+std::vector<std::string> Model::links_without_gravity() const {
+  std::vector<std::string> links;
+  for (int b = 0; b < nbody; ++b)
+    if (!body_gravity[b]) links.push_back(frame_name[body_frame[b]]);
+  return links;
+}
+
 double Model::total_mass() const {
   double mass = 0.0;
   for (double m : body_mass) mass += m;

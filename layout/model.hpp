@@ -119,6 +119,9 @@ struct Model {
   int articulation_index(const std::string& name) const;
 
   double total_mass() const;
+  // The links gravity is switched off on: each such body's own link (the
+  // one it is named after), in body order.
+  std::vector<std::string> links_without_gravity() const;
   // q at the zero configuration: identity quaternions, zero elsewhere.
   Eigen::VectorXd neutral_configuration() const;
 

@@ -529,7 +529,7 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
   report.nv = model.nv;
   for (int k = 0; k < model.nv; ++k) report.driven_dofs += scene.env.dofs[k].drive_stiffness > 0;
   report.nbody = model.nbody;
-  for (int b = 0; b < model.nbody; ++b) report.weightless_bodies += model.body_gravity[b] == 0;
+  report.weightless_bodies = static_cast<int>(model.links_without_gravity().size());
 
   for (Precision precision : config.precisions)
     report.precisions.push_back(time_lockstep(scene, config, precision, report.rows, report.plan));
@@ -553,8 +553,7 @@ int run_bench(const std::vector<std::string>& args, std::ostream& out) {
     peer.targets = joint_targets(scene);
     peer.base_height = scene.floating_base ? scene.env.initial_q[2] : step_scene::kBaseHeight;
     for (int k = 0; k < 3; ++k) peer.gravity[k] = model.gravity[k];
-    for (int b = 0; b < model.nbody; ++b)
-      if (!model.body_gravity[b]) peer.links_without_gravity.push_back(model.frame_name[model.body_frame[b]]);
+    peer.links_without_gravity = model.links_without_gravity();
     peer.ground = report.contacts && scene.env.step.contacts.ground;
     peer.friction = scene.env.step.contacts.ground_contact.friction;
     try {
