@@ -273,13 +273,17 @@ void BatchDynamics<L>::incoming_joint_forces(const BatchState<Scalar>& s, BatchA
 }
 
 template <class L>
-void BatchDynamics<L>::transmitted_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const {
+void BatchDynamics<L>::transmitted_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out,
+                                                std::optional<Scalar> link_damping_weight) const {
   check(s, "transmitted_joint_forces");
   check(out, s.copies(), 6 * km_.nbody, "transmitted_joint_forces");
   for_each_block(s.q.blocks(), [&](int b, Workspace<L>& ws) {
     joint_transforms<L>(km_, s.q.block(b), ws);
     world_transforms<L>(km_, ws);
-    lockstep::transmitted_joint_forces<L>(km_, block_inputs(s, b), ws, out.block(b));
+    BlockInputs<Scalar> in = block_inputs(s, b);
+    in.link_damping = link_damping_weight.has_value();
+    in.link_damping_weight = link_damping_weight.value_or(0);
+    lockstep::transmitted_joint_forces<L>(km_, in, ws, out.block(b));
   });
 }
 

@@ -12,6 +12,8 @@
 
 #include <tbb/enumerable_thread_specific.h>
 
+#include <optional>
+
 namespace lockstep {
 
 // The kernel inputs of one block of a batch state.
@@ -82,8 +84,11 @@ class BatchDynamics {
   // s.tau and s.wrench, world axes, torque about the joint origin.
   void incoming_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
   // (nbody x 6) the same during the motion s.qacc (RNEA's per-body forces),
-  // with s.wrench and s.gravity.
-  void transmitted_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out) const;
+  // with s.wrench and s.gravity; given a link damping weight w, with the
+  // links' damping as a simulation step with that weight takes it,
+  // -D (v + w a) (kernels/body_terms.hpp): the Simulator's readout.
+  void transmitted_joint_forces(const BatchState<Scalar>& s, BatchArray<Scalar>& out,
+                                std::optional<Scalar> link_damping_weight = std::nullopt) const;
   // (nq) q_out = q (+) v dt on the configuration manifold; (nv) its inverse.
   void integrate(const BatchArray<Scalar>& q, const BatchArray<Scalar>& v, Scalar dt, BatchArray<Scalar>& q_out) const;
   void difference(const BatchArray<Scalar>& q0, const BatchArray<Scalar>& q1, BatchArray<Scalar>& v_out) const;

@@ -188,6 +188,30 @@ void check_mass_matrix(const Model& model) {
   }
 }
 
+// The model's link damping as the step takes it: each coefficient finite
+// in the step's precision; under the trapezoid and RK4, which take it
+// explicitly, h c within their stability bound on the negative real axis
+// (Heun's 2, RK4's 2.78: kernels/body_terms.hpp gives D <= c M per body);
+// and none on a floating articulation whose momentum the step keeps.
+void validate_link_damping(const Model& model, const StepOptions& o) {
+  const double h = o.dt / std::max(1, o.substeps);
+  const double bound = o.integrator == Integrator::RK4 ? kRk4Bound : 2.0;
+  for (int b = 0; b < model.nbody; ++b) {
+    const std::string where = "link \"" + model.frame_name[model.body_frame[b]] + "\": ";
+    for (const auto& [name, c] : {std::pair{"linear damping", model.body_linear_damping[b]},
+                                  std::pair{"angular damping", model.body_angular_damping[b]}}) {
+      require(finite_in(o.precision, c), where + name + " must be " + finite_word(o.precision) + ", got " +
+                                             number_text(c));
+      require(euler_velocity(o.integrator) || c * h < bound,
+              where + name + " " + number_text(c) + " 1/s is taken explicitly by the " +
+                  integrator_name(o.integrator) + ", stable only for dt / substeps below " + number_text(bound / c) +
+                  " s (got " + number_text(h) + " s); the Eulers take it implicitly");
+      require(c == 0 || !o.conserve_linear_momentum || !model.articulations[model.body_articulation[b]].floating_base,
+              where + name + ": conserve_linear_momentum needs floating articulations without link damping");
+    }
+  }
+}
+
 void validate(const Model& model, int copies, const StepOptions& o, const std::vector<DofSettings>& dofs) {
   require(copies >= 1, "Simulator: copies must be at least 1, got " + std::to_string(copies));
   // and its substeps positive in the precision the step runs in
@@ -209,6 +233,7 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
           "StepOptions::warm_start must lie in [0, 1], got " + number_text(o.warm_start));
   require(!o.conserve_linear_momentum || o.integrator == Integrator::SemiImplicitEuler,
           "StepOptions::conserve_linear_momentum needs the semi-implicit Euler integrator");
+  validate_link_damping(model, o);
   require(static_cast<int>(dofs.size()) == model.nv, "Simulator: " + std::to_string(dofs.size()) +
                                                          " DOF settings for a model with " + std::to_string(model.nv) +
                                                          " DOFs");
@@ -390,6 +415,7 @@ void Simulator::make_plan() const {
       decide(Stage::StribeckFriction, mode(Stage::StribeckFriction), stribeck, "DOFs with Stribeck friction"),
       decide_found(Stage::ExternalWrenches, mode(Stage::ExternalWrenches), wrenches_used_,
                    wrenches_used_ ? "set_link_wrench called" : "no calls of set_link_wrench"),
+      decide(Stage::LinkDamping, mode(Stage::LinkDamping), model_->damped_bodies(), "bodies with link damping"),
       decide(Stage::PerCopyInertia, mode(Stage::PerCopyInertia), copies_with_any(own_inertia_bodies_),
              "copies with their own inertial parameters"),
       decide(Stage::PerCopyJointParameters, mode(Stage::PerCopyJointParameters), copies_with_any(own_joint_parameters_),
@@ -410,6 +436,7 @@ StepPlan Simulator::step_plan() const {
   p.soft_limits = runs(Stage::SoftLimits);
   p.stribeck = runs(Stage::StribeckFriction);
   p.wrenches = runs(Stage::ExternalWrenches);
+  p.link_damping = runs(Stage::LinkDamping);
   p.per_copy_inertia = runs(Stage::PerCopyInertia);
   p.per_copy_joint_parameters = runs(Stage::PerCopyJointParameters);
   p.hard_limits = runs(Stage::HardLimits);
@@ -1107,6 +1134,13 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::copy_readout(int copy, int c
   return out;
 }
 
+// The link damping weight of the recorded runs (dt / substeps each), when
+// the step applies link damping.
+std::optional<double> Simulator::recorded_link_damping() const {
+  if (!plan()[static_cast<int>(Stage::LinkDamping)].runs) return std::nullopt;
+  return link_damping_weight(options_.integrator, options_.dt / options_.substeps);
+}
+
 Simulator::MotionScratch& Simulator::motion_scratch() const {
   if (!motion_scratch_) motion_scratch_ = std::make_unique<MotionScratch>(*model_, copies());
   return *motion_scratch_;
@@ -1114,8 +1148,8 @@ Simulator::MotionScratch& Simulator::motion_scratch() const {
 
 Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::incoming_joint_forces(int copy) const {
   return copy_readout(copy, model_->nbody, true, "incoming_joint_forces",
-                      [](const auto& d, const BatchState<double>& s, BatchArray<double>& o) {
-                        d.transmitted_joint_forces(s, o);
+                      [&](const auto& d, const BatchState<double>& s, BatchArray<double>& o) {
+                        d.transmitted_joint_forces(s, o, recorded_link_damping());
                       });
 }
 
@@ -1130,7 +1164,7 @@ void Simulator::all_incoming_joint_forces(Eigen::Ref<RowMatrix> out) const {
   require_shape(out, copies(), 6 * model_->nbody, "all_incoming_joint_forces");
   MotionScratch& m = motion_scratch();
   load_motions(0, m.dynamics, true, "all_incoming_joint_forces", m.state, m.poses, m.recorded);
-  m.dynamics.transmitted_joint_forces(m.state, m.forces);
+  m.dynamics.transmitted_joint_forces(m.state, m.forces, recorded_link_damping());
   write_rows(m.forces, m.recorded, out);
 }
 

@@ -22,6 +22,7 @@
 #include "layout/batch_state.hpp"
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -390,6 +391,9 @@ class Simulator {
   template <class Compute>
   Eigen::Matrix<double, 6, Eigen::Dynamic> copy_readout(int copy, int columns, bool forces, const char* function,
                                                         Compute&& compute) const;
+  // The link damping weight the joint forces take the recorded motion with
+  // (BatchDynamics::transmitted_joint_forces); none when the step has none.
+  std::optional<double> recorded_link_damping() const;
   // The bulk readouts' arrays, made on their first call and kept.
   struct MotionScratch;
   MotionScratch& motion_scratch() const;

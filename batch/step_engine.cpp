@@ -278,6 +278,7 @@ template <class L>
 void StepEngine<L>::set_plan(const StepPlan& plan) {
   plan_.drives = plan.drives, plan_.damping = plan.damping, plan_.springs = plan.springs;
   plan_.soft_limits = plan.soft_limits, plan_.stribeck = plan.stribeck, plan_.wrenches = plan.wrenches;
+  plan_.link_damping = plan.link_damping;
   plan_.per_copy_inertia = plan.per_copy_inertia;
   plan_.per_copy_joint_parameters = plan.per_copy_joint_parameters;
   jm_.drives = plan.drives, jm_.damping = plan.damping, jm_.springs = plan.springs;
@@ -348,7 +349,7 @@ template <class L>
 void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
                                       JointTermInputs<T> terms_in, JointTerms joint_terms, Scratch& s) {
   joint_transforms<L>(km_, q, s.ws);
-  if (km_.needs_world(plan_.wrenches)) world_transforms<L>(km_, s.ws);
+  if (km_.needs_world(plan_.wrenches, true, plan_.link_damping)) world_transforms<L>(km_, s.ws);
   terms_in.q = q;
   terms_in.v = v;
   if (joint_terms == JointTerms::AtThisState) joint_term_prepass<L>(km_, jm_, joint_term_weight(h), terms_in, s.terms);
@@ -416,6 +417,8 @@ void StepEngine<L>::begin_block(int block, T h, Scratch& s) {
   in.inertia = inertia(block);
   in.gravity = B.state.gravity.block(block);
   in.wrench = plan_.wrenches ? B.state.wrench.block(block) : nullptr;
+  in.link_damping = plan_.link_damping;
+  in.link_damping_weight = static_cast<T>(link_damping_weight(options_.integrator, h));
   const JointTermInputs<T> terms_in{q,
                                     v,
                                     B.target_q.block(block),
@@ -687,7 +690,9 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   if (euler_velocity(options_.integrator))
     ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
   else
-    factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
+    factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(),
+                               plan_.link_damping ? static_cast<T>(link_damping_weight(options_.integrator, h)) : T(0),
+                               s.ws);
   if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, contacts, contact_rows);
   std::fill(s.column_built.begin(), s.column_built.end(), 0);  // built by the first round that needs them
   s.contact_columns = false;

@@ -21,6 +21,7 @@ namespace lockstep {
 struct StepPlan {
   bool drives = false, damping = false, springs = false, soft_limits = false, stribeck = false;
   bool wrenches = false;
+  bool link_damping = false;
   bool per_copy_inertia = false;  // else every block reads block 0's inertias (all copies hold the model's)
   // else every block reads one block of the scene's drive gains, damping,
   // armature and joint friction (all copies hold those)

@@ -22,6 +22,7 @@ const char* stage_name(Stage stage) {
     case Stage::SoftLimits: return "soft limits";
     case Stage::StribeckFriction: return "Stribeck friction";
     case Stage::ExternalWrenches: return "external wrenches";
+    case Stage::LinkDamping: return "link damping";
     case Stage::PerCopyInertia: return "per-copy inertia";
     case Stage::PerCopyJointParameters: return "per-copy joint parameters";
     case Stage::HardLimits: return "hard limits";

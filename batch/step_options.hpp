@@ -27,6 +27,12 @@ enum class Integrator { SemiImplicitEuler, Trapezoid, RK4, ExplicitEuler };
 inline bool euler_velocity(Integrator integrator) {
   return integrator == Integrator::SemiImplicitEuler || integrator == Integrator::ExplicitEuler;
 }
+// The weight w with which the step takes link damping, -D (v + w a)
+// (kernels/body_terms.hpp): backward Euler (w = h) with the Eulers, like
+// the joint effects; explicit (w = 0) with the trapezoid and RK4, which
+// take it at each of their evaluations and keep their order, stable while
+// h c stays below their bounds (the Simulator checks it).
+inline double link_damping_weight(Integrator integrator, double h) { return euler_velocity(integrator) ? h : 0.0; }
 // Scalar runs the reference path, one copy per block; Simd one copy per lane.
 enum class Lanes { Simd, Scalar };
 
@@ -99,6 +105,7 @@ enum class Stage : int {
   SoftLimits,              // spring-damper limits, implicit
   StribeckFriction,        // smooth friction force, explicit
   ExternalWrenches,        // link wrenches through J^T
+  LinkDamping,             // links' linear and angular damping (LinkSpec), implicit with the Eulers
   PerCopyInertia,          // each copy's own inertial parameters; skipped, all share the model's
   PerCopyJointParameters,  // each copy's own drive gains, damping, armature, joint friction; skipped, the scene's
   HardLimits,              // solver rows: one-sided position limits

@@ -413,25 +413,51 @@ int link_frame(const Model& model, const std::string& name, const At& at) {
   return it->second;
 }
 
+// The moving body named after link `name`, for a setting (`what`, such as
+// "gravity") that is made per moving body: a link fused into another body
+// or fixed to the world is refused.
+int moving_body(const Model& model, const std::string& name, const At& at, const std::string& what) {
+  const int body = model.frame_body[link_frame(model, name, at)];
+  if (body < 0) at.fail("link \"" + name + "\" is fixed to the world: its " + what + " moves nothing");
+  const std::string& head = model.frame_name[model.body_frame[body]];
+  if (head != name)
+    at.fail("link \"" + name + "\" is fixed to link \"" + head + "\" and moves with it as one body; name \"" + head +
+            "\" (" + what + " is set per moving body)");
+  return body;
+}
+
 // "links_without_gravity": links whose moving body gravity does not act on
-// (Model::body_gravity). Gravity is switched per moving body, so each name
-// must be the link a body is named after, not one fused into it.
+// (Model::body_gravity).
 void read_links_without_gravity(const json::Value& v, const At& at, Model& model) {
   expect_type(v, json::Value::Type::Array, at, "an array of link names");
   std::set<int> listed;
   for (std::size_t i = 0; i < v.array.size(); ++i) {
     const At item = at.index(i);
     const std::string& name = read_string(v.array[i], item);
-    const int frame = link_frame(model, name, item);
-    const int body = model.frame_body[frame];
-    if (body < 0) item.fail("link \"" + name + "\" is fixed to the world: gravity moves nothing there");
-    const std::string& head = model.frame_name[model.body_frame[body]];
-    if (head != name)
-      item.fail("link \"" + name + "\" is fixed to link \"" + head + "\" and moves with it as one body; name \"" +
-                head + "\" (gravity is switched per moving body)");
+    const int body = moving_body(model, name, item, "gravity");
     if (!listed.insert(body).second) item.fail("link \"" + name + "\" is listed twice");
     model.body_gravity[body] = 0;  // the URDF's own switch may have it off already
   }
+}
+
+// "link_damping": {"linear": c, "angular": c} for every moving body, then
+// "links": {"link": {"linear": c, "angular": c}} for single bodies, each
+// named after its own link (Model::body_linear_damping, [1/s]); a value
+// left out stays as it was.
+void read_link_damping(const json::Value& v, const At& at, Model& model) {
+  const Object o(v, at, {"linear", "angular", "links"});
+  auto read_pair = [&](const Object& values, int body) {
+    set_number(values, "linear", model.body_linear_damping[body], Bound::NonNegative);
+    set_number(values, "angular", model.body_angular_damping[body], Bound::NonNegative);
+  };
+  for (int b = 0; b < model.nbody; ++b) read_pair(o, b);
+  o.with("links", [&](const json::Value& links, const At& links_at) {
+    expect_type(links, json::Value::Type::Object, links_at, "an object keyed by link name");
+    for (const auto& [name, entry] : links.object) {
+      const At entry_at = links_at.key(name);
+      read_pair(Object(entry, entry_at, {"linear", "angular"}), moving_body(model, name, entry_at, "link damping"));
+    }
+  });
 }
 
 // A DOF named as `lockstep info` lists them ("knee", "ball[1]"), not a
@@ -614,9 +640,9 @@ void read_randomization(const json::Value& v, const At& at, Randomization& r) {
 // ---- the whole file
 
 const std::vector<std::string> kTopKeys = {
-    "model",    "floating_base", "gravity", "links_without_gravity", "initial_state", "drive_targets", "ground",
-    "boxes",    "contacts",      "drives",  "joint_dynamics",        "actuators",     "step",          "env",
-    "randomization"};
+    "model",    "floating_base", "gravity", "links_without_gravity", "link_damping", "initial_state", "drive_targets",
+    "ground",   "boxes",         "contacts", "drives",               "joint_dynamics", "actuators",   "step",
+    "env",      "randomization"};
 
 // The model path: relative paths from the scene file's folder.
 std::string resolve_model_path(const std::string& scene_path, const Object& root) {
@@ -690,6 +716,7 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
   root.with("gravity", [&](const json::Value& v, const At& at) { model.gravity = read_vector3(v, at); });
   root.with("links_without_gravity",
             [&](const json::Value& v, const At& at) { read_links_without_gravity(v, at, model); });
+  root.with("link_damping", [&](const json::Value& v, const At& at) { read_link_damping(v, at, model); });
   root.with("initial_state",
             [&](const json::Value& v, const At& at) { read_initial_state(v, at, model, env, scene.value_warnings); });
   root.with("drive_targets",
@@ -1093,6 +1120,13 @@ std::string scene_to_json(const Scene& scene) {
   std::vector<json::Value> without_gravity;
   for (const std::string& link : model.links_without_gravity()) without_gravity.push_back(string_value(link));
   if (!without_gravity.empty()) m.emplace_back("links_without_gravity", array_value(std::move(without_gravity)));
+  std::vector<Member> damped;
+  for (int b = 0; b < model.nbody; ++b)
+    if (model.body_linear_damping[b] != 0 || model.body_angular_damping[b] != 0)
+      damped.emplace_back(model.frame_name[model.body_frame[b]],
+                          object_value({{"linear", number_value(model.body_linear_damping[b])},
+                                        {"angular", number_value(model.body_angular_damping[b])}}));
+  if (!damped.empty()) m.emplace_back("link_damping", object_value({{"links", object_value(std::move(damped))}}));
   if (env.initial_q.size() > 0 || env.initial_v.size() > 0)
     m.emplace_back("initial_state", initial_state_value(model, env));
   if (env.drive_target_q.size() > 0) {

@@ -4,6 +4,9 @@
 // A joint-terms policy may replace tau and add an implicit diagonal w to D
 // per DOF (the simulation step's implicit drives, damping and springs):
 //   qacc = (M + diag(armature + w))^-1 (tau - bias + sum_i J_i^T F_i).
+// With the step's link damping (BlockInputs::link_damping) M also holds
+// w J_b^T D_b J_b per damped body b and the bias its force at v + w [R^T g; 0]
+// (kernels/body_terms.hpp).
 #pragma once
 
 #include "kernels/body_terms.hpp"
@@ -159,6 +162,12 @@ LOCKSTEP_INLINE void aba_backward_body(const KernelModel<lane::scalar_t<L>>& km,
       gyroscopic_jacobian(IA, v, terms.implicit_gyroscopic_step(), &ws.gyroscopic[ws.joint_Dinv_offset[b]]);
   Vec6<L> pA = spatial::force_cross(v, rigid_mul(I, v));
   subtract_applied_forces<L>(km, in, b, ws.world[b], I, pA);
+  if (damps_body(km, in, b)) {
+    const Vec6<L> damped = link_damping_velocity<L>(in, ws.world[b], v);
+    pA = spatial::add(pA, rigid_mul(link_damping_inertia<L>(km, b, I, T(1)), damped));
+    if (in.link_damping_weight != 0)
+      spatial::add_to(IA, rigid_inertia(link_damping_inertia<L>(km, b, I, in.link_damping_weight)));
+  }
   add_children(km, b, ws, carry, IA, pA);
   L U[6 * N];  // column k at U + 6k
   for (int k = 0; k < N; ++k)

@@ -69,6 +69,48 @@ inline void subtract_applied_forces(const KernelModel<lane::scalar_t<L>>& km, co
   if (in.gravity && !km.body_gravity[b]) f = spatial::add(f, body_weight<L>(in.gravity, I, world));
 }
 
+// Link damping of body b (KernelModel::body_linear_damping and
+// body_angular_damping, c_lin and c_ang): the wrench -D v, where D is the
+// rigid inertia with mass c_lin m and rotational inertia c_ang I_c about the
+// same COM (about the COM, -c_lin m v_com and -c_ang I_c w). The step takes
+// it at the end of the step, backward Euler with its weight w
+// (BlockInputs::link_damping_weight): -D (v + w a), a being the body's
+// spatial acceleration. The kernels' acceleration a' = a - [R^T g; 0]
+// (gravity as the base's acceleration a0 = [-g; 0]), so
+//   -D (v + w a) = -w D a' - D (v + w [R^T g; 0]):
+// w D joins the body's inertia where it multiplies a' (ABA's IA, CRBA's
+// composite inertia) and D (v + w [R^T g; 0]) its bias force. For a free
+// body without gravity this is v1 = v0 / (1 + h c) per step.
+// link_damping_inertia gives s D, as BodyInertia parameters.
+template <class L>
+inline BodyInertia<L> link_damping_inertia(const KernelModel<lane::scalar_t<L>>& km, int b, const BodyInertia<L>& I,
+                                           lane::scalar_t<L> s) {
+  BodyInertia<L> D;
+  D.mass = L(s * km.body_linear_damping[b]) * I.mass;
+  D.com = I.com;
+  const L angular(s * km.body_angular_damping[b]);
+  for (int k = 0; k < 6; ++k) D.rot[k] = angular * I.rot[k];
+  return D;
+}
+
+// The velocity link damping acts on, but for the w a' that joins the
+// inertia: v + w [R^T g; 0] (see link_damping_inertia).
+template <class L>
+inline Vec6<L> link_damping_velocity(const BlockInputs<lane::scalar_t<L>>& in, const Transform<L>& world,
+                                     const Vec6<L>& v) {
+  constexpr std::size_t W = lane::width_v<L>;
+  if (!in.gravity || in.link_damping_weight == 0) return v;
+  const Vec3<L> g = {lane::load<L>(in.gravity), lane::load<L>(in.gravity + W), lane::load<L>(in.gravity + 2 * W)};
+  const Vec3<L> shift = spatial::scale(L(in.link_damping_weight), spatial::rotate_back(world.R, g));
+  return spatial::make6(spatial::add(v.lin(), shift), v.ang());
+}
+
+// Whether body b takes link damping in these inputs.
+template <class T>
+inline bool damps_body(const KernelModel<T>& km, const BlockInputs<T>& in, int b) {
+  return in.link_damping && km.body_damped[b];
+}
+
 // Gravity enters as a fictitious world acceleration a0 = [-g; 0] of the base
 // (RBDA sec. 5.3), which also makes the bias force include gravity.
 template <class L>

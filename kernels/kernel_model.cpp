@@ -18,6 +18,10 @@ KernelModel<T>::KernelModel(const Model& model)
       body_gravity(model.body_gravity) {
   for (std::uint8_t on : body_gravity) gravity_switched_off |= on == 0;
   for (int b = 0; b < nbody; ++b) {
+    body_linear_damping.push_back(static_cast<T>(model.body_linear_damping[b]));
+    body_angular_damping.push_back(static_cast<T>(model.body_angular_damping[b]));
+    body_damped.push_back(model.body_linear_damping[b] != 0.0 || model.body_angular_damping[b] != 0.0);
+    link_damping |= body_damped.back() != 0;
     append_placement(body_placement, model.body_placement[b]);
     const Eigen::Matrix3d& I = model.body_inertia[b];
     const double params[kInertiaParams] = {model.body_mass[b], model.body_com[b].x(), model.body_com[b].y(),

@@ -56,9 +56,17 @@ struct KernelModel {
   // Some body has gravity switched off: the kernels that take gravity then
   // need ws.world (body_weight), as they do for wrenches.
   bool gravity_switched_off = false;
+  // Model::body_linear_damping and body_angular_damping (kernels/body_terms.hpp,
+  // link_damping_matrix); body_damped: either is nonzero
+  std::vector<T> body_linear_damping, body_angular_damping;  // (nbody)
+  std::vector<std::uint8_t> body_damped;                     // (nbody)
+  bool link_damping = false;                                 // some body is damped
   // Whether RNEA and ABA read ws.world: with wrenches, or with gravity where
-  // some body has it switched off.
-  bool needs_world(bool wrenches, bool gravity = true) const { return wrenches || (gravity && gravity_switched_off); }
+  // some body has it switched off or, with the step's link damping (a
+  // BlockInputs switch), is damped.
+  bool needs_world(bool wrenches, bool gravity = true, bool damping = false) const {
+    return wrenches || (gravity && (gravity_switched_off || (damping && link_damping)));
+  }
   std::vector<Handoff> body_handoff;           // (nbody) see Handoff
   std::vector<std::uint8_t> body_takes_carry;  // (nbody) the next body visited hands over by Carry
   std::vector<std::uint8_t> body_takes_sum;    // (nbody) some child hands over by Store / Add
@@ -126,6 +134,10 @@ struct BlockInputs {
   const T* wrench = nullptr;   // (nbody x 6) world [force; torque about the body COM]
   const T* inertia = nullptr;  // (nbody x kInertiaParams); required
   const T* gravity = nullptr;  // (3) world gravity vector
+  // Link damping (kernels/body_terms.hpp), which only the simulation step
+  // applies: its force is taken at v + link_damping_weight a (0: explicit)
+  bool link_damping = false;
+  T link_damping_weight = 0;
 };
 
 // Scratch for one block, sized for a model once; kernels never allocate.

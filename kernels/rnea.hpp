@@ -1,6 +1,7 @@
 // Recursive Newton-Euler inverse dynamics over one block (RBDA Table 5.1):
 // tau = M(q) qacc + C(q, v) v + g(q) - sum_i J_i^T F_i, M with the joints'
-// armature on its diagonal as in CRBA and ABA.
+// armature on its diagonal as in CRBA and ABA (and, with the step's link
+// damping, its force at v + w a: kernels/body_terms.hpp).
 #pragma once
 
 #include "kernels/body_terms.hpp"
@@ -48,6 +49,11 @@ void rnea(const KernelModel<lane::scalar_t<L>>& km, const BlockInputs<lane::scal
     // f = I a + v x* I v - f_ext
     Vec6<L> f = spatial::add(rigid_mul(I, a), spatial::force_cross(v, rigid_mul(I, v)));
     subtract_applied_forces<L>(km, in, b, ws.world[b], I, f);
+    if (damps_body(km, in, b)) {  // + D (v + w a), in the kernels' a' (body_terms.hpp)
+      const Vec6<L> damped = link_damping_velocity<L>(in, ws.world[b], v);
+      const Vec6<L> rate = spatial::add(damped, spatial::scale(L(in.link_damping_weight), a));
+      f = spatial::add(f, rigid_mul(link_damping_inertia<L>(km, b, I, lane::scalar_t<L>(1)), rate));
+    }
     ws.force[b] = f;
   }
   // backward pass: project on the joint axes, pass the rest to the parent

@@ -94,6 +94,11 @@ template <class L> inline Vec6<L> sub(const Vec6<L>& a, const Vec6<L>& b) {
   for (int k = 0; k < 6; ++k) c.e[k] = a.e[k] - b.e[k];
   return c;
 }
+template <class L> inline Vec6<L> scale(const L& s, const Vec6<L>& a) {
+  Vec6<L> c;
+  for (int k = 0; k < 6; ++k) c.e[k] = s * a.e[k];
+  return c;
+}
 
 // Motion from parent to child coordinates: w_c = R^T w, v_c = R^T (v + w x p).
 template <class L> inline Vec6<L> motion_to_child(const Transform<L>& X, const Vec6<L>& m) {

@@ -85,6 +85,12 @@ std::vector<std::string> Model::links_without_gravity() const {
   return links;
 }
 
+int Model::damped_bodies() const {
+  int count = 0;
+  for (int b = 0; b < nbody; ++b) count += body_linear_damping[b] != 0.0 || body_angular_damping[b] != 0.0;
+  return count;
+}
+
 double Model::total_mass() const {
   double mass = 0.0;
   for (double m : body_mass) mass += m;

@@ -82,6 +82,8 @@ struct Model {
   // 1: gravity acts on the body (the default); 0: it is switched off for the
   // body and every link fused into it (LinkSpec::gravity)
   std::vector<std::uint8_t> body_gravity;
+  // LinkSpec::linear_damping and angular_damping of the body's own link [1/s]
+  std::vector<double> body_linear_damping, body_angular_damping;
 
   // dofs (nv), low-level order
   std::vector<std::string> dof_name;   // joint name, or joint name + [k] for multi-DOF joints
@@ -122,6 +124,8 @@ struct Model {
   // The links gravity is switched off on: each such body's own link (the
   // one it is named after), in body order.
   std::vector<std::string> links_without_gravity() const;
+  // How many bodies have linear or angular damping.
+  int damped_bodies() const;
   // q at the zero configuration: identity quaternions, zero elsewhere.
   Eigen::VectorXd neutral_configuration() const;
 

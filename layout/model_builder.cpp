@@ -159,6 +159,10 @@ void ModelBuilder::check_inertial(const ArticulationSpec& spec, const LinkSpec& 
   if (asym > 1e-9 * scale) throw ModelError(ctx + ": inertia matrix is not symmetric");
   if (ev[0] < -options_.inertia_eigen_tolerance * scale)
     throw ModelError(ctx + ": inertia matrix is not positive semi-definite (eigenvalue " + num(ev[0]) + ")");
+  for (const auto& [what, value] : {std::pair{"linear damping", link.linear_damping},
+                                    std::pair{"angular damping", link.angular_damping}})
+    if (!(value >= 0.0 && std::isfinite(value)))
+      throw ModelError(ctx + ": " + what + " must be a finite number >= 0, got " + num(value));
 }
 
 void ModelBuilder::check_joint(const ArticulationSpec& spec, const LinkSpec& link) const {
@@ -296,19 +300,23 @@ int ModelBuilder::add_articulation(const ArticulationSpec& spec_in) {
   const std::vector<int> heads = body_head_links(spec);
   std::vector<bool> on_world(n);
   for (int i = 0; i < n; ++i) on_world[i] = heads[i] < 0;
-  // Gravity is switched per moving body: a link with mass fused into one
-  // must agree with the link the body is named after, whose switch the body
-  // takes (a massless link has no weight, and links fused into the world
-  // carry nothing that gravity could move).
+  // Gravity and link damping are set per moving body: a link with mass
+  // fused into one must agree with the link the body is named after, whose
+  // settings the body takes (a massless link has no weight and nothing to
+  // damp, and links fused into the world carry nothing that moves).
+  auto gravity_text = [](const LinkSpec& l) { return std::string(l.gravity ? "on" : "off"); };
+  auto damping_text = [](const LinkSpec& l) {
+    return "linear " + num(l.linear_damping) + ", angular " + num(l.angular_damping);
+  };
   for (int i = 1; i < n; ++i) {
     const LinkSpec& link = spec.links[i];
-    if (on_world[i]) continue;
+    if (on_world[i] || link.inertial.mass == 0.0) continue;
     const LinkSpec& head = spec.links[heads[i]];
-    if (link.inertial.mass > 0 && link.gravity != head.gravity)
-      throw ModelError(link_ctx(spec, link) + ": gravity " + (link.gravity ? "on" : "off") +
-                       ", but it is fixed to link '" + head.name + "', which has gravity " +
-                       (head.gravity ? "on" : "off") +
-                       " (gravity is switched per moving body: every link fixed to it must agree)");
+    for (const auto& [what, text] : {std::pair{"gravity", +gravity_text}, std::pair{"damping", +damping_text}})
+      if (text(link) != text(head))
+        throw ModelError(link_ctx(spec, link) + ": " + what + " " + text(link) + ", but it is fixed to link '" +
+                         head.name + "', which has " + what + " " + text(head) + " (" + what +
+                         " is set per moving body: every link with mass fixed to it must agree)");
   }
   for (int i = 0; i < n; ++i) {
     const LinkSpec& link = spec.links[i];
@@ -396,6 +404,8 @@ Model ModelBuilder::finalize() const {
         m.joint_name.push_back(name);
         m.joint_by_name[name] = b;
         m.body_gravity.push_back(link.gravity ? 1 : 0);
+        m.body_linear_damping.push_back(link.linear_damping);
+        m.body_angular_damping.push_back(link.angular_damping);
         const int nv = joint_nv(type);
         for (int k = 0; k < nv; ++k) {
           const std::string dname = nv == 1 ? name : name + "[" + std::to_string(k) + "]";

@@ -63,6 +63,13 @@ struct LinkSpec {
   // the link it is named after: every link with mass fused into it by fixed
   // joints must agree.
   bool gravity = true;
+  // Viscous damping of the link's motion [1/s], PhysX's linear and angular
+  // damping of a link: the wrench -linear_damping m v_com, -angular_damping
+  // I_com w at its COM, which alone would slow a free body as exp(-c t).
+  // Per moving body, like gravity; the simulation step takes it implicitly
+  // (docs/conventions.md, "Link damping"), the dynamics queries ignore it.
+  double linear_damping = 0.0;
+  double angular_damping = 0.0;
   std::vector<Shape> shapes;  // body/frame fields are filled in by the builder; pose in the link frame
   int source_line = 0;        // the link's line in ArticulationSpec::source, for messages (0: none)
 };

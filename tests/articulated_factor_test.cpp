@@ -2,8 +2,9 @@
 // inertias (ltdl_factor_from_aba) against the tree-sparse factorisation of
 // CRBA's M (ltdl_factor): both must solve Mt x = b with a backward error of
 // a stable factorisation, on every shared model and on a tree with a
-// Spherical joint, in float and double, and the SIMD lanes must reproduce
-// the scalar reference path bit for bit.
+// Spherical joint, in float and double, also with link damping's w D in
+// the bodies' inertias, and the SIMD lanes must reproduce the scalar
+// reference path bit for bit.
 #include "kernels/aba.hpp"
 #include "kernels/crba.hpp"
 #include "kernels/joint_rows.hpp"
@@ -33,12 +34,15 @@ struct GivenImplicitDiagonal {
   lane::scalar_t<L> implicit_gyroscopic_step() const { return lane::scalar_t<L>(0.01); }
 };
 
-// Random q, v and w for `copies` copies (w rounded to T, as the lanes hold it).
+// Random q, v and w for `copies` copies (w rounded to T, as the lanes hold
+// it), and the weight of the model's link damping in Mt (0: none).
 struct Inputs {
   std::vector<Eigen::VectorXd> q, v, w;
+  double link_damping_weight = 0;
   template <class T>
-  static Inputs draw(const Model& model, int copies, std::mt19937& rng, T) {
+  static Inputs draw(const Model& model, int copies, std::mt19937& rng, T, double link_damping_weight = 0) {
     Inputs in;
+    in.link_damping_weight = static_cast<T>(link_damping_weight);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     for (int c = 0; c < copies; ++c) {
       in.q.push_back(test::random_configuration(model, rng));
@@ -75,14 +79,17 @@ struct Factors {
     in.v = state.v.block(0);
     in.inertia = state.inertia.block(0);
     in.gravity = state.gravity.block(0);
+    in.link_damping = inputs.link_damping_weight != 0;
+    in.link_damping_weight = static_cast<T>(inputs.link_damping_weight);
     joint_transforms<L>(km, in.q, ws);
+    world_transforms<L>(km, ws);
     GivenImplicitDiagonal<L> terms{diagonal.data()};
     aba_with<L>(km, in, terms, ws, reinterpret_cast<T*>(qacc.data()));
     from_aba.assign(model.nv * model.nv, L(T(0)));
     ltdl_factor_from_aba<L>(km, ws, diagonal.data(), reinterpret_cast<T*>(from_aba.data()));
     from_crba.assign(model.nv * model.nv, L(T(0)));
     T* H = reinterpret_cast<T*>(from_crba.data());
-    crba<L>(km, in.inertia, ws, H);
+    crba_tree<L>(km, in.inertia, ws, H, in.link_damping_weight);
     for (int k = 0; k < model.nv; ++k) {
       T* Hkk = H + (k * model.nv + k) * W;
       lane::store(lane::load<L>(Hkk) + diagonal[k], Hkk);
@@ -106,8 +113,25 @@ struct Factors {
   }
 };
 
+// w_d sum_b J_b^T D_b J_b, the link damping's share of Mt at weight w_d,
+// from the bodies' [v_com; w] Jacobians, D_b = diag(c_lin m, c_ang R I_c R^T).
+Eigen::MatrixXd link_damping_share(const Model& model, const Eigen::VectorXd& q, double weight) {
+  const CopyDynamics dyn(model, Precision::Double);
+  const Eigen::MatrixXd J = dyn.com_jacobian(q);
+  const std::vector<Eigen::Isometry3d> poses = dyn.body_poses(q);
+  Eigen::MatrixXd share = Eigen::MatrixXd::Zero(model.nv, model.nv);
+  for (int b = 0; b < model.nbody; ++b) {
+    const Eigen::Matrix3d R = poses[b].linear();
+    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(6, 6);
+    D.topLeftCorner<3, 3>() = model.body_linear_damping[b] * model.body_mass[b] * Eigen::Matrix3d::Identity();
+    D.bottomRightCorner<3, 3>() = model.body_angular_damping[b] * R * model.body_inertia[b] * R.transpose();
+    share += weight * J.middleRows(6 * b, 6).transpose() * D * J.middleRows(6 * b, 6);
+  }
+  return share;
+}
+
 // Largest backward error |Mt x - b| / (|Mt| |x|) over the block's copies,
-// Mt from CRBA in double.
+// Mt from CRBA in double (with link damping's share from Jacobians).
 template <class L>
 double worst_backward_error(const Model& model, const Inputs& inputs, const std::vector<L>& factors,
                             std::mt19937& rng) {
@@ -119,6 +143,7 @@ double worst_backward_error(const Model& model, const Inputs& inputs, const std:
   for (int c = 0; c < Factors<L>::W; ++c) {
     Eigen::MatrixXd Mt = dyn.mass_matrix(inputs.q[c]);
     Mt.diagonal() += inputs.w[c];
+    if (inputs.link_damping_weight != 0) Mt += link_damping_share(model, inputs.q[c], inputs.link_damping_weight);
     worst = std::max(worst, (Mt * x[c] - b[c]).norm() / (Mt.norm() * x[c].norm()));
   }
   return worst;
@@ -130,14 +155,14 @@ double worst_backward_error(const Model& model, const Inputs& inputs, const std:
 // for Cholesky, whose factors these are up to a diagonal scaling). The
 // bound 4 n eps holds both factorisations on every model here.
 template <class L>
-void expect_factors_solve(const Model& model) {
+void expect_factors_solve(const Model& model, double link_damping_weight = 0) {
   using T = lane::scalar_t<L>;
   constexpr int W = Factors<L>::W;
   std::mt19937 rng(11);
   const double bound = 4.0 * model.nv * std::numeric_limits<T>::epsilon();
   double worst_aba = 0, worst_crba = 0;
   for (int trial = 0; trial < 3; ++trial) {
-    const Inputs inputs = Inputs::draw(model, W, rng, T());
+    const Inputs inputs = Inputs::draw(model, W, rng, T(), link_damping_weight);
     const Factors<L> f(model, inputs, 0);
     worst_aba = std::max(worst_aba, worst_backward_error(model, inputs, f.from_aba, rng));
     worst_crba = std::max(worst_crba, worst_backward_error(model, inputs, f.from_crba, rng));
@@ -151,11 +176,11 @@ void expect_factors_solve(const Model& model) {
 // Each lane of the SIMD factors equals, bit for bit, the scalar reference
 // path's factors of that copy alone.
 template <class T>
-void expect_lanes_match_scalar(const Model& model) {
+void expect_lanes_match_scalar(const Model& model, double link_damping_weight = 0) {
   using S = lane::simd<T>;
   constexpr int W = Factors<S>::W;
   std::mt19937 rng(3);
-  const Inputs inputs = Inputs::draw(model, W, rng, T());
+  const Inputs inputs = Inputs::draw(model, W, rng, T(), link_damping_weight);
   const Factors<S> block(model, inputs, 0);
   const T* lanes = reinterpret_cast<const T*>(block.from_aba.data());
   for (int c = 0; c < W; ++c) {
@@ -211,6 +236,28 @@ TEST_P(ArticulatedFactor, SolvesLikeTheCrbaFactorsInFloat) { expect_factors_solv
 TEST_P(ArticulatedFactor, LanesMatchTheScalarPath) {
   expect_lanes_match_scalar<float>(model_);
   expect_lanes_match_scalar<double>(model_);
+}
+
+// With link damping (w D in each body's inertia, kernels/body_terms.hpp) at
+// a weight of 4 ms, c_lin and c_ang up to 2 and 4 per second.
+Model damped(Model model) {
+  for (int b = 0; b < model.nbody; ++b) {
+    model.body_linear_damping[b] = 0.5 + 0.25 * (b % 7);
+    model.body_angular_damping[b] = 4.0 - 0.5 * (b % 7);
+  }
+  return model;
+}
+constexpr double kLinkDampingWeight = 0.004;
+
+TEST_P(ArticulatedFactor, SolvesLikeTheCrbaFactorsWithLinkDamping) {
+  const Model model = damped(model_);
+  expect_factors_solve<lane::simd<double>>(model, kLinkDampingWeight);
+  expect_factors_solve<lane::simd<float>>(model, kLinkDampingWeight);
+}
+TEST_P(ArticulatedFactor, LanesMatchTheScalarPathWithLinkDamping) {
+  const Model model = damped(model_);
+  expect_lanes_match_scalar<float>(model, kLinkDampingWeight);
+  expect_lanes_match_scalar<double>(model, kLinkDampingWeight);
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedModels, ArticulatedFactor, ::testing::ValuesIn(test::all_model_cases()),

@@ -10,7 +10,6 @@
 
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 namespace lockstep::test {
 namespace {
@@ -64,7 +63,7 @@ TEST(LinkGravity, BuilderKeepsEachBodysSwitch) {
 TEST(LinkGravity, ALinkWithMassFusedIntoABodyMustAgreeWithIt) {
   ModelBuilder builder;
   EXPECT_MODEL_ERROR(builder.add_articulation(arm_with_glove(true, false)), "link 'glove'", "gravity off",
-                     "fixed to link 'arm', which has gravity on", "gravity is switched per moving body");
+                     "fixed to link 'arm', which has gravity on", "gravity is set per moving body");
   EXPECT_MODEL_ERROR(builder.add_articulation(arm_with_glove(false, true)), "link 'glove'", "gravity on",
                      "which has gravity off");
   // a massless frame has no weight to switch: the body takes the arm's
@@ -243,24 +242,12 @@ TEST(LinkGravity, MomentumBalanceCountsOnlyTheWeightThatActs) {
 
 // ---- scenes
 
-class LinkGravityScene : public ::testing::Test {
+class LinkGravityScene : public SceneFileTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("lockstep_link_gravity_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string write(const std::string& text) {
-    const std::string path = (dir_ / "scene.json").string();
-    std::ofstream(path) << text;
-    return path;
-  }
   std::string scene_text(const std::string& model, bool floating, const std::string& links) {
     return "{\"model\": \"" + fs::absolute(model).string() + "\", \"floating_base\": " +
            (floating ? "true" : "false") + ", \"links_without_gravity\": [" + links + "]}";
   }
-  fs::path dir_;
 };
 
 TEST_F(LinkGravityScene, NamedLinksLoseGravityAndTheSceneWritesThemBack) {

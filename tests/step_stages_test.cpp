@@ -19,7 +19,7 @@ constexpr int kSteps = 8;
 
 Stage stage_at(int i) { return static_cast<Stage>(i); }
 
-// anymal_b floating, its 12 leg DOFs with every joint effect except the one
+// The 12 leg DOFs of anymal_b (scene_model) with every joint effect except the one
 // of `unused` (Stage::Count: none): damping, springs, spring-damper limits on
 // even legs DOFs and hard limits [-0.3, 0.3] on odd ones, velocity limits of
 // 5 rad/s, Coulomb friction on every third DOF and Stribeck friction on the
@@ -51,6 +51,15 @@ std::vector<DofSettings> scene_dofs(const Model& model, Stage unused) {
     ++leg;
   }
   return dofs;
+}
+
+// anymal_b floating with link damping on every body but the base (its
+// legs' linear 0.3 and angular 0.6 per second), unless `unused` is it.
+Model scene_model(Stage unused) {
+  Model model = test::load_shared_model("anymal_b", true);
+  if (unused != Stage::LinkDamping)
+    for (int b = 1; b < model.nbody; ++b) model.body_linear_damping[b] = 0.3, model.body_angular_damping[b] = 0.6;
+  return model;
 }
 
 // The scene's simulator with per-copy states, torques, targets and (unless
@@ -91,8 +100,8 @@ class StepStages : public ::testing::TestWithParam<int> {};
 // A scene without the stage's feature gives the same bits with the stage
 // forced on, forced off, or left to the plan; every other stage runs.
 TEST_P(StepStages, UnusedStageCostsNothing) {
-  const Model model = test::load_shared_model("anymal_b", true);
   const Stage unused = stage_at(GetParam());
+  const Model model = scene_model(unused);
   for (Precision precision : {Precision::Float, Precision::Double})
     for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
       const std::string where = std::string(precision_name(precision)) + " " + solver_name(solver);
@@ -117,7 +126,7 @@ INSTANTIATE_TEST_SUITE_P(, StepStages, ::testing::Range(0, kStageCount), stage_t
 
 // Every stage has one line: its name, runs or skipped, and why.
 TEST(StepStagesPlan, DescribePlanListsEveryStageWithItsReason) {
-  const Model model = test::load_shared_model("anymal_b", true);
+  const Model model = scene_model(Stage::Count);
   const Simulator full = run_scene(model, Stage::Count, test::scene_options(Precision::Float, SolverType::PGS));
   StepOptions o;
   o.force(Stage::Damping, StageMode::On).force(Stage::HardLimits, StageMode::Off);
@@ -140,7 +149,8 @@ TEST(StepStagesPlan, DescribePlanListsEveryStageWithItsReason) {
                            "  damping: runs (forced on (no DOFs with damping))\n",
                            "  hard limits: skipped (forced off (12 DOFs with hard position limits))\n",
                            "  velocity limits: runs (12 DOFs with velocity limits)\n",
-                           "  external wrenches: skipped (no calls of set_link_wrench)\n"})
+                           "  external wrenches: skipped (no calls of set_link_wrench)\n",
+                           "  link damping: runs (12 bodies with link damping)\n"})
     EXPECT_NE(text.find(line), std::string::npos) << "no line '" << line << "' in\n" << text;
 }
 

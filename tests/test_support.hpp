@@ -8,7 +8,10 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <memory>
+#include <unistd.h>
 
 #include <ostream>
 #include <random>
@@ -189,6 +192,26 @@ class ModelCaseTest : public ::testing::TestWithParam<ModelCase> {
   }
   Model model_;
   std::unique_ptr<CopyDynamics> dyn_;
+};
+
+// A test with a folder of its own for the files it writes (scenes, URDFs),
+// removed after it: dir_ is unique to the process and the test.
+class SceneFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = std::filesystem::temp_directory_path() /
+           ("lockstep_" + std::string(info->test_suite_name()) + "_" + std::to_string(::getpid()) + "_" + info->name());
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  // Writes `text` to scene.json in dir_; returns its path.
+  std::string write(const std::string& text) {
+    const std::string path = (dir_ / "scene.json").string();
+    std::ofstream(path) << text;
+    return path;
+  }
+  std::filesystem::path dir_;
 };
 
 }  // namespace lockstep::test

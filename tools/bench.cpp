@@ -487,6 +487,8 @@ std::optional<std::string> mujoco_difference(const Scene& scene) {
   if (!scene.env.step.actuators.empty())
     return "the scene has actuators (" + scene.env.step.actuators.front().name +
            "), whose motor operating regions the MuJoCo peer does not model";
+  if (scene.model.damped_bodies() > 0)
+    return "the scene has link damping, which MuJoCo (joint damping only) does not model";
   std::optional<std::pair<double, double>> gains;
   for (int k = 0; k < scene.model.nv; ++k) {
     if (scene.model.body_joint[scene.model.dof_body[k]] == JointType::Free) continue;

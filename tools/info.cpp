@@ -81,11 +81,14 @@ void print_info_text(const LoadedModel& loaded, std::ostream& out) {
   articulations.print(out);
 
   out << "\nbodies (" << m.nbody << ", low-level order):\n";
-  Table bodies({"index", "name", "parent", "joint", "type", "q", "dof", "mass [kg]", "gravity"});
+  Table bodies({"index", "name", "parent", "joint", "type", "q", "dof", "mass [kg]", "gravity",
+                "damping lin/ang [1/s]"});
   for (int b = 0; b < m.nbody; ++b) {
+    const bool damped = m.body_linear_damping[b] != 0 || m.body_angular_damping[b] != 0;
     bodies.add({std::to_string(b), body_name(m, b), body_name(m, m.body_parent[b]), m.joint_name[b],
                 joint_type_name(m.body_joint[b]), std::to_string(m.body_q_offset[b]),
-                std::to_string(m.body_dof_offset[b]), mass_text(m.body_mass[b]), m.body_gravity[b] ? "on" : "off"});
+                std::to_string(m.body_dof_offset[b]), mass_text(m.body_mass[b]), m.body_gravity[b] ? "on" : "off",
+                damped ? json::number(m.body_linear_damping[b]) + " / " + json::number(m.body_angular_damping[b]) : "-"});
   }
   bodies.print(out);
 
@@ -145,7 +148,9 @@ void print_info_json(const LoadedModel& loaded, std::ostream& out) {
         << ", \"q_offset\": " << m.body_q_offset[b] << ", \"nq\": " << joint_nq(type)
         << ", \"dof_offset\": " << m.body_dof_offset[b] << ", \"nv\": " << joint_nv(type)
         << ", \"articulation\": " << m.body_articulation[b] << ", \"mass\": " << number(m.body_mass[b])
-        << ", \"gravity\": " << (m.body_gravity[b] ? "true" : "false") << "}";
+        << ", \"gravity\": " << (m.body_gravity[b] ? "true" : "false")
+        << ", \"linear_damping\": " << number(m.body_linear_damping[b])
+        << ", \"angular_damping\": " << number(m.body_angular_damping[b]) << "}";
   }
   out << "\n  ],\n";
 
