@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstring>
+#include <stdexcept>
 #include <filesystem>
 
 namespace lockstep {
@@ -165,7 +166,8 @@ std::vector<StepDataset> rollout_step_datasets(const VecEnv& env) {
 
 RolloutRecorder::RolloutRecorder(const VecEnv& env, const std::string& path, const RolloutInfo& info,
                                  RolloutFileOptions file)
-    : env_(env) {
+    : env_(env), path_(path), env_steps_recorded_(env.steps()) {
+  ended_.reserve(env.copies());  // record() allocates nothing
   const Observations& o = env.observations();
   std::vector<StaticDataset> statics;
   if (state_type(env) == ElementType::Float32) {
@@ -182,6 +184,14 @@ RolloutRecorder::RolloutRecorder(const VecEnv& env, const std::string& path, con
 RolloutRecorder::~RolloutRecorder() = default;
 
 void RolloutRecorder::record(const RowMatrix& actions) {
+  if (actions.rows() != env_.copies() || actions.cols() != env_.action_size())
+    throw std::invalid_argument(path_ + ": record: actions must be " + std::to_string(env_.copies()) + " x " +
+                                std::to_string(env_.action_size()) + " (copies x action_size), got " +
+                                std::to_string(actions.rows()) + " x " + std::to_string(actions.cols()));
+  if (env_.steps() == env_steps_recorded_)
+    throw std::logic_error(path_ + ": record: the environment has not stepped since the last record (env step " +
+                           std::to_string(env_.steps()) + ")");
+  env_steps_recorded_ = env_.steps();
   const auto start = std::chrono::steady_clock::now();
   const Observations &now = env_.observations(), &terminal = env_.terminal_observations();
   // a copy that ended was reset: its step ended in the terminal row
@@ -218,6 +228,10 @@ void RolloutRecorder::record(const RowMatrix& actions) {
 }
 
 void RolloutRecorder::close(std::vector<Attribute> summary) {
+  for (const Attribute& a : summary)
+    if (a.name == "steps")
+      throw std::invalid_argument(path_ + ": close: the summary attribute 'steps' is the recorder's own (the steps "
+                                  "recorded)");
   summary.push_back({"steps", steps_});
   writer_->close(std::move(summary));
 }

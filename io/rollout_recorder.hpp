@@ -39,9 +39,13 @@ class RolloutRecorder {
   RolloutRecorder(const VecEnv& env, const std::string& path, const RolloutInfo& info, RolloutFileOptions file = {});
   ~RolloutRecorder();
 
-  // The step just taken with `actions` (N x action_size).
+  // The step just taken with `actions` (N x action_size); once per env
+  // step (std::invalid_argument for other actions' shape, std::logic_error
+  // when the environment has not stepped since the last record).
   void record(const RowMatrix& actions);
-  // Writes the rest and marks the file complete, with `summary` attributes.
+  // Writes the rest and marks the file complete, with `summary` attributes
+  // (`steps`, the steps recorded, is added here: std::invalid_argument if
+  // the summary has its own).
   void close(std::vector<Attribute> summary = {});
 
   std::int64_t steps() const { return steps_; }
@@ -52,8 +56,10 @@ class RolloutRecorder {
  private:
   const VecEnv& env_;
   std::unique_ptr<RolloutWriter> writer_;
+  std::string path_;
   std::vector<int> ended_;  // copies whose episode ended in the step recorded
   std::int64_t steps_ = 0;
+  std::int64_t env_steps_recorded_;  // env_.steps() at the last record (at construction, the initial state)
   double seconds_recording_ = 0;
 };
 

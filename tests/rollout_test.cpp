@@ -6,6 +6,7 @@
 #include "io/rollout_recorder.hpp"
 #include "io/scene_file.hpp"
 #include "io/sha256.hpp"
+#include "tests/test_support.hpp"
 #include "tools/rollout_policy.hpp"
 
 #include <gtest/gtest.h>
@@ -113,6 +114,31 @@ std::vector<std::vector<RowMatrix>> record_observed(const Scene& scene, int envs
   }
   recorder.close();
   return seen;
+}
+
+// record() takes one step's actions of the environment's shape, once per
+// env step; close() keeps `steps` for itself. Each misuse says what and
+// where, and the file still closes with the steps recorded.
+TEST(Rollout, TheRecorderRefusesMisuseByName) {
+  TempDir dir;
+  const std::string file = (dir.path / "misuse.h5").string();
+  const Scene scene = short_episode_scene();
+  VecEnv env(scene.model, 3, scene.env);
+  env.reset();
+  RolloutRecorder recorder(env, file, {scene_to_json(scene), scene.model_path, "zero", {}});
+  const RowMatrix actions = RowMatrix::Zero(3, env.action_size());
+  EXPECT_THROW_WITH(recorder.record(actions), std::logic_error,
+                    file + ": record: the environment has not stepped since the last record (env step 0)");
+  env.step(actions);
+  EXPECT_THROW_WITH(recorder.record(RowMatrix::Zero(2, env.action_size())), std::invalid_argument,
+                    file + ": record: actions must be 3 x " + std::to_string(env.action_size()) +
+                        " (copies x action_size), got 2 x " + std::to_string(env.action_size()));
+  recorder.record(actions);
+  EXPECT_THROW(recorder.record(actions), std::logic_error);
+  EXPECT_THROW_WITH(recorder.close({{"steps", std::int64_t(5)}}), std::invalid_argument,
+                    "the summary attribute 'steps' is the recorder's own");
+  recorder.close();
+  EXPECT_EQ(RolloutReader(file).steps(), 1);
 }
 
 // model_file is the URDF's absolute path, as documented, however the path
