@@ -188,20 +188,25 @@ void check_mass_matrix(const Model& model) {
   }
 }
 
-// The model's link damping as the step takes it: each coefficient finite
-// in the step's precision; under the trapezoid and RK4, which take it
+// The model's link damping as the step takes it, unless its stage is
+// forced off: each coefficient >= 0 and, times the body's mass, finite in
+// the step's precision; under the trapezoid and RK4, which take it
 // explicitly, h c within their stability bound on the negative real axis
-// (Heun's 2, RK4's 2.78: kernels/body_terms.hpp gives D <= c M per body);
-// and none on a floating articulation whose momentum the step keeps.
+// (Heun's 2, RK4's 2.78: the damping's generalized force J^T D J is at most
+// c M for the body's largest c, as D is at most c times its spatial
+// inertia); and none on a floating articulation whose momentum the step
+// keeps.
 void validate_link_damping(const Model& model, const StepOptions& o) {
+  if (o.stages[static_cast<int>(Stage::LinkDamping)] == StageMode::Off) return;
   const double h = o.dt / std::max(1, o.substeps);
   const double bound = o.integrator == Integrator::RK4 ? kRk4Bound : 2.0;
   for (int b = 0; b < model.nbody; ++b) {
     const std::string where = "link \"" + model.frame_name[model.body_frame[b]] + "\": ";
     for (const auto& [name, c] : {std::pair{"linear damping", model.body_linear_damping[b]},
                                   std::pair{"angular damping", model.body_angular_damping[b]}}) {
-      require(finite_in(o.precision, c), where + name + " must be " + finite_word(o.precision) + ", got " +
-                                             number_text(c));
+      require(c >= 0 && finite_in(o.precision, c * std::max(1.0, model.body_mass[b])),
+              where + name + " must be >= 0 and, times the body's mass, " + finite_word(o.precision) + ", got " +
+                  number_text(c));
       require(euler_velocity(o.integrator) || c * h < bound,
               where + name + " " + number_text(c) + " 1/s is taken explicitly by the " +
                   integrator_name(o.integrator) + ", stable only for dt / substeps below " + number_text(bound / c) +

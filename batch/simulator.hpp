@@ -299,7 +299,7 @@ class Simulator {
   // StepOptions::record_motion): one column per body, [force; torque
   // about the joint origin (the child body's origin)], world axes at the
   // start of the step. It is RNEA on the step's motion, with gravity, the
-  // link wrenches and the contact forces: constraint force and actuation
+  // link wrenches, the contact forces and link damping: constraint force and actuation
   // together. Along a joint's own axes it is what applied_torque() sums, less
   // the armature's share (armature x acceleration). A Free joint transmits
   // only its feedforward force, and what the implicit gyroscopic force

@@ -349,7 +349,8 @@ template <class L>
 void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
                                       JointTermInputs<T> terms_in, JointTerms joint_terms, Scratch& s) {
   joint_transforms<L>(km_, q, s.ws);
-  if (km_.needs_world(plan_.wrenches, true, plan_.link_damping)) world_transforms<L>(km_, s.ws);
+  const bool implicit_damping = plan_.link_damping && link_damping_weight(options_.integrator, h) != 0;
+  if (km_.needs_world(plan_.wrenches, true, implicit_damping)) world_transforms<L>(km_, s.ws);
   terms_in.q = q;
   terms_in.v = v;
   if (joint_terms == JointTerms::AtThisState) joint_term_prepass<L>(km_, jm_, joint_term_weight(h), terms_in, s.terms);
@@ -684,15 +685,14 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   const T* impulse = batch_.impulse.block(block);
   for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
   for (int i = 0; i < mc; ++i) contact_rows.lambda[i] = contact_warm_start(s, i);
-  // Mt's factors: from the step's one ABA at q (both Eulers), or, where the
-  // trapezoid's second ABA ran at its predicted state, by CRBA
+  // Mt's factors: from the step's one ABA at q (both Eulers: with link
+  // damping's w D, body_terms.hpp), or, where the trapezoid's second ABA ran
+  // at its predicted state, by CRBA (its link damping is explicit)
   T* H = factors(s);
   if (euler_velocity(options_.integrator))
     ltdl_factor_from_aba<L>(km_, s.ws, s.terms.implicit_diagonal.data(), H);
   else
-    factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(),
-                               plan_.link_damping ? static_cast<T>(link_damping_weight(options_.integrator, h)) : T(0),
-                               s.ws);
+    factor_step_mass_matrix<L>(km_, inertia(block), s.terms.implicit_diagonal.data(), s.ws);
   if (mc > 0) contact_delassus<L>(km_, contact_params_, H, h, contacts, contact_rows);
   std::fill(s.column_built.begin(), s.column_built.end(), 0);  // built by the first round that needs them
   s.contact_columns = false;

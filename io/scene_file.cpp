@@ -446,16 +446,22 @@ void read_links_without_gravity(const json::Value& v, const At& at, Model& model
 // left out stays as it was.
 void read_link_damping(const json::Value& v, const At& at, Model& model) {
   const Object o(v, at, {"linear", "angular", "links"});
-  auto read_pair = [&](const Object& values, int body) {
-    set_number(values, "linear", model.body_linear_damping[body], Bound::NonNegative);
-    set_number(values, "angular", model.body_angular_damping[body], Bound::NonNegative);
+  auto read_pair = [&](const Object& values, auto&& set) {
+    values.with("linear", [&](const json::Value& x, const At& a) {
+      set(model.body_linear_damping, read_number(x, a, Bound::NonNegative));
+    });
+    values.with("angular", [&](const json::Value& x, const At& a) {
+      set(model.body_angular_damping, read_number(x, a, Bound::NonNegative));
+    });
   };
-  for (int b = 0; b < model.nbody; ++b) read_pair(o, b);
+  read_pair(o, [](std::vector<double>& per_body, double c) { std::fill(per_body.begin(), per_body.end(), c); });
   o.with("links", [&](const json::Value& links, const At& links_at) {
     expect_type(links, json::Value::Type::Object, links_at, "an object keyed by link name");
     for (const auto& [name, entry] : links.object) {
       const At entry_at = links_at.key(name);
-      read_pair(Object(entry, entry_at, {"linear", "angular"}), moving_body(model, name, entry_at, "link damping"));
+      const Object values(entry, entry_at, {"linear", "angular"});
+      const int body = moving_body(model, name, entry_at, "link damping");
+      read_pair(values, [body](std::vector<double>& per_body, double c) { per_body[body] = c; });
     }
   });
 }

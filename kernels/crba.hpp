@@ -29,19 +29,13 @@ LOCKSTEP_INLINE void carry_columns_to_ancestors(const KernelModel<lane::scalar_t
 // The entries of M between a DOF and itself or its tree ancestors (both
 // triangles), all that ltdl_factor reads; the others are left as they were.
 // Needs ws.local. M_out: (nv x nv) per lane, row-major, armature on the
-// diagonal. With a link damping weight w (the step's), each damped body's
-// inertia holds w D too (kernels/body_terms.hpp, link_damping_inertia).
+// diagonal.
 template <class L>
 void crba_tree(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* inertia, Workspace<L>& ws,
-               lane::scalar_t<L>* M_out, lane::scalar_t<L> link_damping_weight = 0) {
+               lane::scalar_t<L>* M_out) {
   constexpr std::size_t W = lane::width_v<L>;
   const int nv = km.nv;
-  for (int b = 0; b < km.nbody; ++b) {
-    const BodyInertia<L> I = load_body_inertia<L>(inertia, b);
-    ws.inertia[b] = rigid_inertia(I);
-    if (link_damping_weight != 0 && km.body_damped[b])
-      spatial::add_to(ws.inertia[b], rigid_inertia(link_damping_inertia<L>(km, b, I, link_damping_weight)));
-  }
+  for (int b = 0; b < km.nbody; ++b) ws.inertia[b] = rigid_inertia(load_body_inertia<L>(inertia, b));
   // composite inertias, leaves to roots
   for (int b = km.nbody - 1; b >= 0; --b) {
     const int parent = km.body_parent[b];

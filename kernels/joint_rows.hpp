@@ -204,16 +204,16 @@ lane::mask_t<L> build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L
 }
 
 // Mt = CRBA + the implicit diagonal (armature and w), factored as L^T D L
-// into ws.matrix for the rows' solves; with the link damping weight w, CRBA
-// with w D in each damped body's inertia. Needs ws.local; overwrites
+// into ws.matrix for the rows' solves (the trapezoid's: it takes link
+// damping explicitly, so Mt holds none). Needs ws.local; overwrites
 // ws.inertia and ws.matrix.
 template <class L>
 void factor_step_mass_matrix(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* inertia,
-                             const L* implicit_diagonal, lane::scalar_t<L> link_damping_weight, Workspace<L>& ws) {
+                             const L* implicit_diagonal, Workspace<L>& ws) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
   T* H = reinterpret_cast<T*>(ws.matrix.data());
-  crba_tree<L>(km, inertia, ws, H, link_damping_weight);
+  crba_tree<L>(km, inertia, ws, H);
   for (int k = 0; k < km.nv; ++k) {
     T* Hkk = H + (k * km.nv + k) * W;
     lane::store(lane::load<L>(Hkk) + implicit_diagonal[k], Hkk);

@@ -57,13 +57,13 @@ struct KernelModel {
   // need ws.world (body_weight), as they do for wrenches.
   bool gravity_switched_off = false;
   // Model::body_linear_damping and body_angular_damping (kernels/body_terms.hpp,
-  // link_damping_matrix); body_damped: either is nonzero
+  // link_damping_inertia); body_damped: either is nonzero
   std::vector<T> body_linear_damping, body_angular_damping;  // (nbody)
   std::vector<std::uint8_t> body_damped;                     // (nbody)
   bool link_damping = false;                                 // some body is damped
   // Whether RNEA and ABA read ws.world: with wrenches, or with gravity where
-  // some body has it switched off or, with the step's link damping (a
-  // BlockInputs switch), is damped.
+  // some body has it switched off or, with the step's implicit link damping
+  // (BlockInputs::link_damping_weight not 0), is damped.
   bool needs_world(bool wrenches, bool gravity = true, bool damping = false) const {
     return wrenches || (gravity && (gravity_switched_off || (damping && link_damping)));
   }

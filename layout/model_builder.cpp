@@ -7,6 +7,7 @@
 #include <cmath>
 #include <map>
 #include <sstream>
+#include <tuple>
 #include <unordered_map>
 #include <unordered_set>
 #include <utility>
@@ -312,8 +313,11 @@ int ModelBuilder::add_articulation(const ArticulationSpec& spec_in) {
     const LinkSpec& link = spec.links[i];
     if (on_world[i] || link.inertial.mass == 0.0) continue;
     const LinkSpec& head = spec.links[heads[i]];
-    for (const auto& [what, text] : {std::pair{"gravity", +gravity_text}, std::pair{"damping", +damping_text}})
-      if (text(link) != text(head))
+    const bool damping_differs =
+        link.linear_damping != head.linear_damping || link.angular_damping != head.angular_damping;
+    for (const auto& [what, differs, text] : {std::tuple{"gravity", link.gravity != head.gravity, +gravity_text},
+                                              std::tuple{"damping", damping_differs, +damping_text}})
+      if (differs)
         throw ModelError(link_ctx(spec, link) + ": " + what + " " + text(link) + ", but it is fixed to link '" +
                          head.name + "', which has " + what + " " + text(head) + " (" + what +
                          " is set per moving body: every link with mass fixed to it must agree)");

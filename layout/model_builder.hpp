@@ -66,8 +66,9 @@ struct LinkSpec {
   // Viscous damping of the link's motion [1/s], PhysX's linear and angular
   // damping of a link: the wrench -linear_damping m v_com, -angular_damping
   // I_com w at its COM, which alone would slow a free body as exp(-c t).
-  // Per moving body, like gravity; the simulation step takes it implicitly
-  // (docs/conventions.md, "Link damping"), the dynamics queries ignore it.
+  // Per moving body, like gravity; the simulation step takes it (implicitly
+  // with the Eulers: docs/conventions.md, "Link damping"), the dynamics
+  // queries ignore it.
   double linear_damping = 0.0;
   double angular_damping = 0.0;
   std::vector<Shape> shapes;  // body/frame fields are filled in by the builder; pose in the link frame

@@ -129,21 +129,24 @@ TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueOnALandingQuadruped) {
 }
 
 // Link damping on every body (its force at the end of the step, w D in
-// the inertias: kernels/body_terms.hpp) is in the joint forces too; the
-// Free root leaves nothing unbalanced without the implicit gyroscopic
-// force.
+// the inertias: kernels/body_terms.hpp) is in the joint forces too, with
+// the Free root's gyroscopic force implicit or not (the joints' balance
+// leaves the root's unbalanced share out either way).
 TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueWithLinkDamping) {
   Model model = load_shared_model("anymal_b", true);
   for (int b = 0; b < model.nbody; ++b) {
     model.body_linear_damping[b] = 0.5 + 0.1 * b;
     model.body_angular_damping[b] = 2.0 - 0.1 * b;
   }
-  for (Precision precision : {Precision::Float, Precision::Double}) {
-    StepOptions o;
-    o.precision = precision;
-    o.implicit_gyroscopic = false;
-    expect_landing_identity(model, o, std::string("link damping, ") + precision_name(precision));
-  }
+  for (bool implicit : {true, false})
+    for (Precision precision : {Precision::Float, Precision::Double}) {
+      StepOptions o;
+      o.precision = precision;
+      o.implicit_gyroscopic = implicit;
+      expect_landing_identity(model, o,
+                              std::string("link damping, ") + (implicit ? "implicit" : "explicit") +
+                                  " gyroscopic, " + precision_name(precision));
+    }
 }
 
 // ur5 with drives past its hard limits, velocity limits, Coulomb friction,

@@ -5,8 +5,8 @@
 // decay under each integrator, against Jacobians on every model (the force)
 // and against the exponential decay of kinetic energy that uniform damping
 // gives any articulation, for ABA and RNEA being each other's inverse with
-// it, for the SIMD lanes against the scalar path, and for its stage, checks
-// and scene key.
+// it, for the SIMD lanes against the scalar path, and for its stage, its
+// checks and its scene file key.
 #include "batch/copy_dynamics.hpp"
 #include "io/scene_file.hpp"
 #include "kernels/aba.hpp"
@@ -225,9 +225,10 @@ TEST(LinkDamping, AFreeBodysVelocitiesDecayByEachIntegratorsFactor) {
     }
 }
 
-// A damped sphere falling from rest: backward Euler gives
-// v1 = (v0 + h g) / (1 + h c) per step, which tends to the terminal
-// velocity g / c (the implicit part's gravity shift, [R^T g; 0] w, at work).
+// A damped sphere falling from rest, turned so that its body axes are not
+// the world's: backward Euler gives v1 = (v0 + h g) / (1 + h c) per step in
+// world axes, which tends to the terminal velocity g / c (the implicit
+// part's gravity shift, w [R^T g; 0], at work, in the body's axes).
 TEST(LinkDamping, AFallingBodyReachesItsTerminalVelocity) {
   const double c = 2.0, h = 0.002;
   const Model model = damped_sphere(c);
@@ -235,15 +236,19 @@ TEST(LinkDamping, AFallingBodyReachesItsTerminalVelocity) {
   o.precision = Precision::Double;
   o.dt = h;
   Simulator sim(model, 1, o);
-  sim.set_state(0, model.neutral_configuration(), Eigen::VectorXd::Zero(6));
-  double v = 0, worst = 0;
+  const Eigen::Quaterniond turn(Eigen::AngleAxisd(1.0, Eigen::Vector3d(1, 2, 3).normalized()));
+  sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, 1), turn), Eigen::VectorXd::Zero(6));
+  const Eigen::Matrix3d R = turn.toRotationMatrix();  // the sphere does not turn: nothing spins it
+  Eigen::Vector3d v = Eigen::Vector3d::Zero();
+  double worst = 0;
   for (int i = 0; i < 3000; ++i) {
     sim.step();
-    v = (v + h * model.gravity.z()) / (1 + h * c);
-    worst = std::max(worst, std::abs(sim.v(0)[2] - v));
+    v = (v + h * model.gravity) / (1 + h * c);
+    worst = std::max(worst, (R * sim.v(0).head<3>() - v).norm());
   }
   EXPECT_LE(worst, 1e-12);
-  EXPECT_NEAR(sim.v(0)[2], model.gravity.z() / c, 1e-4);  // after 6 s, 4.9 exp(-12) = 3e-5 from it
+  // after 6 s, 4.9 exp(-12) = 3e-5 from it
+  EXPECT_LT((R * sim.v(0).head<3>() - model.gravity / c).norm(), 1e-4);
 }
 
 // Uniform damping c on every body makes the generalized force -c M v, so
@@ -351,9 +356,15 @@ TEST(LinkDamping, TheSimulatorRefusesWhatItCannotStep) {
                  "link \"body\": linear damping: conserve_linear_momentum needs floating articulations without link "
                  "damping");
   o.conserve_linear_momentum = false;
-  sphere.body_angular_damping[0] = 1e39;  // beyond float
-  expect_invalid([&] { Simulator(sphere, 1, o); }, "link \"body\": angular damping must be finite (in float");
+  sphere.body_angular_damping[0] = 3e38;  // times the mass, 6e38: beyond float
+  expect_invalid([&] { Simulator(sphere, 1, o); },
+                 "link \"body\": angular damping must be >= 0 and, times the body's mass, finite (in float");
   o.precision = Precision::Double;
+  EXPECT_NO_THROW(Simulator(sphere, 1, o));
+  sphere.body_linear_damping[0] = -1;  // a Model edited past the builder's check
+  expect_invalid([&] { Simulator(sphere, 1, o); }, "link \"body\": linear damping must be >= 0");
+  // with its stage forced off, the damping is not taken, nor checked
+  o.force(Stage::LinkDamping, StageMode::Off);
   EXPECT_NO_THROW(Simulator(sphere, 1, o));
 }
 
