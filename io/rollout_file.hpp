@@ -69,7 +69,9 @@ struct RolloutFileOptions {
   int chunk_steps = 0;         // steps per chunk along T; 0: a chunk of the largest dataset is about 1 MiB
   int compression = 0;         // gzip (deflate) level 0..9, with the shuffle filter; 0: none
   double flush_seconds = 1.0;  // the writer thread flushes at least this often (and at close)
-  int buffer_steps = 0;        // steps per in-memory block handed to the writer thread; 0: chunk_steps
+  // steps per in-memory block handed to the writer thread; 0: the largest
+  // dataset's chunk. Its two blocks may hold 1 GiB at most.
+  int buffer_steps = 0;
 };
 
 // Thrown for every failure of the file: the message names the file's path and
@@ -125,6 +127,11 @@ class RolloutWriter {
   // RolloutFileError for a failure, including one the writer thread met
   // earlier; the writer is closed either way.
   void close(std::vector<Attribute> final_attributes = {});
+  // The same for a run that stops early: writes the remaining steps and
+  // closes the file, which stays "complete" = 0, as the destructor leaves
+  // it, but throws RolloutFileError for a failure instead of keeping quiet
+  // (steps_flushed() then says what the file keeps).
+  void close_incomplete();
 
   std::int64_t steps_committed() const;
   std::int64_t steps_flushed() const;  // flushed to the file, visible to readers

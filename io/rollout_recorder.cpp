@@ -236,6 +236,8 @@ void RolloutRecorder::close(std::vector<Attribute> summary) {
   writer_->close(std::move(summary));
 }
 
+void RolloutRecorder::close_incomplete() { writer_->close_incomplete(); }
+
 double RolloutRecorder::seconds_waiting() const { return writer_->seconds_waiting(); }
 std::int64_t RolloutRecorder::steps_flushed() const { return writer_->steps_flushed(); }
 

@@ -47,6 +47,9 @@ class RolloutRecorder {
   // (`steps`, the steps recorded, is added here: std::invalid_argument if
   // the summary has its own).
   void close(std::vector<Attribute> summary = {});
+  // Writes the rest and closes the file without marking it complete (a run
+  // stopped early; RolloutWriter::close_incomplete).
+  void close_incomplete();
 
   std::int64_t steps() const { return steps_; }
   double seconds_recording() const { return seconds_recording_; }  // in record(), waiting included

@@ -35,6 +35,7 @@ using Clock = std::chrono::steady_clock;
 
 constexpr std::size_t kAutomaticChunkBytes = std::size_t{1} << 20;  // chunk_steps = 0: ~1 MiB chunks
 constexpr std::size_t kMaxChunkBytes = std::size_t{4} << 20;        // unless a single frame is larger
+constexpr std::size_t kMaxBufferBytes = std::size_t{1} << 30;       // the two in-memory blocks together
 constexpr double kMaxFlushSeconds = 1e6;
 
 // Argument checks ------------------------------------------------------------
@@ -259,7 +260,17 @@ struct RolloutWriter::Impl {
     const std::size_t chunk_steps = options.chunk_steps > 0
                                         ? static_cast<std::size_t>(options.chunk_steps)
                                         : std::max<std::size_t>(1, kAutomaticChunkBytes / largest_frame);
-    buffer_steps = options.buffer_steps > 0 ? options.buffer_steps : static_cast<int>(chunk_steps);
+    // by default a block is the largest dataset's chunk (its steps within kMaxChunkBytes)
+    const std::size_t largest_chunk = std::clamp<std::size_t>(kMaxChunkBytes / largest_frame, 1, chunk_steps);
+    buffer_steps = options.buffer_steps > 0 ? options.buffer_steps : static_cast<int>(largest_chunk);
+    std::size_t step_bytes = 0;
+    for (std::size_t bytes : frame_bytes) step_bytes += bytes;
+    if (2.0 * buffer_steps * static_cast<double>(step_bytes) > static_cast<double>(kMaxBufferBytes))
+      throw std::invalid_argument(path + ": buffer_steps " + std::to_string(buffer_steps) + " of " +
+                                  std::to_string(step_bytes) + " bytes each, in two blocks, would hold " +
+                                  std::to_string(2 * static_cast<std::size_t>(buffer_steps) * step_bytes) +
+                                  " bytes in memory; at most " + std::to_string(kMaxBufferBytes) +
+                                  " (give fewer buffer_steps)");
     compression_level = options.compression;
     flush_interval = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options.flush_seconds));
     for (Block& block : blocks)
@@ -572,6 +583,13 @@ void RolloutWriter::close(std::vector<Attribute> final_attributes) {
   w.stop_thread();
   w.close_file();
   mark_complete(w.path, final_attributes);
+}
+
+void RolloutWriter::close_incomplete() {
+  Impl& w = *impl_;
+  w.check_open("close_incomplete()");
+  w.stop_thread();
+  w.close_file();
 }
 
 std::int64_t RolloutWriter::steps_committed() const { return impl_->committed.load(); }

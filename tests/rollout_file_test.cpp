@@ -731,12 +731,20 @@ TEST(RolloutErrors, WriterRejectsBadArguments) {
   options = {};
   options.buffer_steps = -1;
   EXPECT_THROW_WITH(make({x}, {}, {}, options), std::invalid_argument, "buffer_steps");
+  // the two in-memory blocks within 1 GiB: x's 8-byte frames, 2^27 steps each
+  options.buffer_steps = 1 << 27;
+  EXPECT_THROW_WITH(make({x}, {}, {}, options), std::invalid_argument,
+                    "buffer_steps 134217728 of 8 bytes each, in two blocks, would hold 2147483648 bytes in memory; at "
+                    "most 1073741824");
   for (double seconds : {-1.0, std::nan(""), 1e300}) {
     options = {};
     options.flush_seconds = seconds;
     EXPECT_THROW_WITH(make({x}, {}, {}, options), std::invalid_argument, "flush_seconds");
   }
   EXPECT_FALSE(fs::exists(path)) << "argument errors come before the file is created";
+  options = {};
+  options.chunk_steps = 1 << 30;  // a huge chunk is clamped to 4 MiB, and so is the block it sets by default
+  EXPECT_NO_THROW(make({x}, {}, {}, options));
 }
 
 TEST(RolloutErrors, WriterRejectsMisuse) {

@@ -9,6 +9,7 @@
 #include "tests/test_support.hpp"
 #include "tools/rollout_policy.hpp"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <signal.h>
@@ -22,6 +23,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <thread>
 #include <tuple>
 
@@ -259,11 +261,13 @@ TEST(Rollout, FilesDoNotDependOnTheThreadCount) {
 
 // Runs `lockstep rollout` on the bundled scene into `file` until the file
 // shows at least 20 flushed steps, then sends `signal`; returns the wait
-// status and the steps seen before the signal.
-std::pair<int, std::int64_t> interrupt_rollout(const std::string& file, int signal) {
+// status and the steps seen before the signal. Its stderr goes to `err`.
+std::pair<int, std::int64_t> interrupt_rollout(const std::string& file, int signal, const std::string& err) {
   const pid_t child = ::fork();
   if (child < 0) return {-1, 0};
   if (child == 0) {
+    const int fd = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0 || ::dup2(fd, 2) < 0) ::_exit(126);
     ::execl(LOCKSTEP_TOOL_PATH, "lockstep", "rollout", bundled_scene().c_str(), "--envs", "64", "--steps", "1000000",
             "--flush-seconds", "0.05", "--threads", "1", "--out", file.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
@@ -433,22 +437,29 @@ void expect_readable_incomplete(const std::string& file, std::int64_t seen) {
 TEST(Rollout, AKilledRolloutLeavesAReadableIncompleteFile) {
   const TempDir dir;
   const std::string file = (dir.path / "killed.h5").string();
-  const auto [status, seen] = interrupt_rollout(file, SIGKILL);
+  const auto [status, seen] = interrupt_rollout(file, SIGKILL, (dir.path / "stderr.txt").string());
   ASSERT_TRUE(WIFSIGNALED(status)) << "the rollout ended by itself (status " << status << ")";
   ASSERT_GE(seen, 20) << "the rollout never flushed 20 steps";
   expect_readable_incomplete(file, seen);
 }
 
 // SIGINT (Ctrl-C) stops it after the step under way: exit code 130, every
-// recorded step written, the file marked incomplete.
+// recorded step written, the file marked incomplete, and the message says
+// how many steps it keeps.
 TEST(Rollout, AnInterruptedRolloutKeepsEveryStepItTook) {
   const TempDir dir;
   const std::string file = (dir.path / "interrupted.h5").string();
-  const auto [status, seen] = interrupt_rollout(file, SIGINT);
+  const std::string err = (dir.path / "stderr.txt").string();
+  const auto [status, seen] = interrupt_rollout(file, SIGINT, err);
   ASSERT_TRUE(WIFEXITED(status)) << "status " << status;
   EXPECT_EQ(WEXITSTATUS(status), 130);
   ASSERT_GE(seen, 20);
   expect_readable_incomplete(file, seen);
+  // the message counts the steps the file keeps
+  std::ifstream in(err);
+  const std::string said((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string keeps = file + " keeps " + std::to_string(RolloutReader(file).steps()) + ", marked incomplete";
+  EXPECT_NE(said.find(keeps), std::string::npos) << "no '" << keeps << "' in\n" << said;
 }
 
 }  // namespace

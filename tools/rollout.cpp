@@ -211,9 +211,12 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
   const auto start = Clock::now();
   for (std::int64_t t = 0; t < config.steps; ++t) {
     if (stop_requested.load()) {
-      // the recorder's destructor writes and flushes the steps so far, complete = 0
-      std::fprintf(stderr, "\nlockstep rollout: interrupted after %lld of %lld steps; %s keeps them, marked incomplete\n",
-                   static_cast<long long>(t), static_cast<long long>(config.steps), config.out.c_str());
+      // the steps so far written and flushed, complete = 0; a failure to
+      // write them is the output's error (RolloutFileError: kExitOutput)
+      recorder.close_incomplete();
+      std::fprintf(stderr, "\nlockstep rollout: interrupted after %lld of %lld steps; %s keeps %lld, marked incomplete\n",
+                   static_cast<long long>(t), static_cast<long long>(config.steps), config.out.c_str(),
+                   static_cast<long long>(recorder.steps_flushed()));
       return kExitInterrupted;
     }
     policy.act(env, t, actions);
