@@ -33,6 +33,15 @@ namespace rollout_hdf5 {
 
 Hdf5Lock lock_hdf5() {
   static std::recursive_mutex mutex;
+  // HDF5 (1.10.8) cannot close a file whose flush once failed (a full disk
+  // as a rollout file is marked complete): its cache then refuses every
+  // flush, the file stays open, and the library's own shutdown at exit,
+  // which tries again, crashes. Every file lockstep opens is closed by its
+  // owner, and one that failed is left as a killed run leaves it, so the
+  // process ends without that shutdown (before HDF5 starts: a no-op when
+  // the program started HDF5 itself).
+  static const bool no_shutdown_at_exit = (H5dont_atexit(), true);
+  static_cast<void>(no_shutdown_at_exit);
   Hdf5Lock lock(mutex);
   // A thread-safe HDF5 (Debian's is) keeps the printing switch per thread.
   thread_local bool quiet = false;

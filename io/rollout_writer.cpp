@@ -582,7 +582,15 @@ void RolloutWriter::close(std::vector<Attribute> final_attributes) {
   check_attributes(w.path, final_attributes);
   w.stop_thread();
   w.close_file();
-  mark_complete(w.path, final_attributes);
+  try {
+    mark_complete(w.path, final_attributes);
+  } catch (const RolloutFileError& e) {
+    // The reopened file's header may still say it is open for writing,
+    // which readers refuse until h5clear (HDF5's tools) clears it.
+    throw RolloutFileError(std::string(e.what()) + "; its " + std::to_string(w.flushed.load()) +
+                           " steps are written, but the file stays marked incomplete and may be marked as open for "
+                           "writing: `h5clear -s " + w.path + "` lets readers open it");
+  }
 }
 
 void RolloutWriter::close_incomplete() {
