@@ -641,28 +641,31 @@ constexpr rlim_t kFileSizeLimit = 128 * 1024;
   std::exit(reported ? 0 : 3);
 }
 
-TEST(RolloutDiskFull, CommitFailsAndFlushedStepsStayReadable) {
-  const TempDir dir;
-  const std::string path = dir.file("full.h5");
+// Runs child(path, fd) in a forked process that writes its report to fd and
+// exits; returns its wait status and its report.
+std::pair<int, std::string> run_child(void (*child)(const std::string&, int), const std::string& path) {
   int pipe_fds[2];
-  ASSERT_EQ(pipe(pipe_fds), 0);
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
+  if (pipe(pipe_fds) != 0) return {-1, "no pipe"};
+  const pid_t pid = fork();
+  if (pid < 0) return {-1, "no fork"};
+  if (pid == 0) {
     close(pipe_fds[0]);
-    write_until_disk_full(path, pipe_fds[1]);
+    child(path, pipe_fds[1]);
   }
   close(pipe_fds[1]);
   std::string report;
   char buffer[4096];
-  while (true) {
-    const ssize_t n = read(pipe_fds[0], buffer, sizeof buffer);
-    if (n <= 0) break;
-    report.append(buffer, static_cast<std::size_t>(n));
-  }
+  for (ssize_t n; (n = read(pipe_fds[0], buffer, sizeof buffer)) > 0;) report.append(buffer, static_cast<std::size_t>(n));
   close(pipe_fds[0]);
   int status = 0;
-  waitpid(child, &status, 0);
+  waitpid(pid, &status, 0);
+  return {status, report};
+}
+
+TEST(RolloutDiskFull, CommitFailsAndFlushedStepsStayReadable) {
+  const TempDir dir;
+  const std::string path = dir.file("full.h5");
+  const auto [status, report] = run_child(write_until_disk_full, path);
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "child status " << status;
   ASSERT_GE(report.size(), sizeof(std::int64_t));
   std::int64_t flushed = 0;
@@ -710,21 +713,7 @@ TEST(RolloutDiskFull, CommitFailsAndFlushedStepsStayReadable) {
 TEST(RolloutDiskFull, AFailureToMarkTheFileCompleteSaysHowToOpenIt) {
   const TempDir dir;
   const std::string path = dir.file("summary.h5");
-  int pipe_fds[2];
-  ASSERT_EQ(pipe(pipe_fds), 0);
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    close(pipe_fds[0]);
-    close_past_the_limit(path, pipe_fds[1]);
-  }
-  close(pipe_fds[1]);
-  std::string message;
-  char buffer[4096];
-  for (ssize_t n; (n = read(pipe_fds[0], buffer, sizeof buffer)) > 0;) message.append(buffer, static_cast<std::size_t>(n));
-  close(pipe_fds[0]);
-  int status = 0;
-  waitpid(child, &status, 0);
+  const auto [status, message] = run_child(close_past_the_limit, path);
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "child status " << status << ", said: " << message;
   EXPECT_NE(message.find(path + ": cannot"), std::string::npos) << message;
   EXPECT_NE(message.find("its 3 steps are written, but the file stays marked incomplete"), std::string::npos)
