@@ -60,6 +60,7 @@ DatasetInfo open_dataset(hid_t file, const std::string& name, const std::string&
 
 bool is_dataset(hid_t file, const std::string& name) {
   const Handle object(H5Oopen(file, name.c_str(), H5P_DEFAULT), H5Oclose);
+  if (!object) H5Eclear2(H5E_DEFAULT);  // not an object (a dangling link): no error of the next failure's
   return object && H5Iget_type(object.get()) == H5I_DATASET;
 }
 

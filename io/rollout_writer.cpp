@@ -457,8 +457,8 @@ struct RolloutWriter::Impl {
     const std::size_t count = plan_chunks(block);
     try {
       rollout_chunks::filter_chunks(chunks, count, compression_level);
-    } catch (const std::runtime_error& e) {
-      fail(path, std::string("cannot compress the step datasets") + at_steps + ": " + e.what());
+    } catch (const std::runtime_error& e) {  // zlib's, not HDF5's: no HDF5 error stack (nor its lock) to read
+      throw RolloutFileError(path + ": cannot compress the step datasets" + at_steps + ": " + e.what());
     }
     const Hdf5Lock lock = lock_hdf5();
     for (std::size_t i = 0; i < slots.size(); ++i) {

@@ -7,6 +7,7 @@
 #include "layout/name_hint.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <exception>
 #include <filesystem>
@@ -160,6 +161,14 @@ long parse_count(const std::string& option, const std::string& text, long minimu
   if (x < static_cast<double>(minimum) || x != std::floor(x))
     throw UsageError(option + " expects a whole number >= " + std::to_string(minimum) + ", not \"" + text + "\"");
   return static_cast<long>(x);
+}
+
+std::uint64_t parse_unsigned(const std::string& option, const std::string& text) {
+  std::uint64_t x = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), x);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size())
+    throw UsageError(option + " expects a whole number in [0, 18446744073709551615], not \"" + text + "\"");
+  return x;
 }
 
 Precision parse_precision(const std::string& text) {

@@ -6,6 +6,7 @@
 #include "io/scene_file.hpp"
 #include "layout/model.hpp"
 
+#include <cstdint>
 #include <iosfwd>
 #include <stdexcept>
 #include <string>
@@ -51,6 +52,8 @@ ParsedArgs parse_args(const std::vector<std::string>& args, const std::vector<st
 // Option values; a UsageError names the option and the text.
 double parse_number(const std::string& option, const std::string& text);  // finite
 long parse_count(const std::string& option, const std::string& text, long minimum = 1, double maximum = 1e9);
+// A whole number in [0, 2^64) in decimal digits, exactly (a seed).
+std::uint64_t parse_unsigned(const std::string& option, const std::string& text);
 Precision parse_precision(const std::string& text);  // float or double
 
 // "1 thread", "2 threads": a count and its noun, plural past one.

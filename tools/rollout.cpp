@@ -88,7 +88,7 @@ RolloutConfig parse_config(const std::vector<std::string>& args) {
   if (const auto* v = parsed.value("--policy")) c.policy = parse_policy(*v);
   if (const auto* v = parsed.value("--threads")) c.threads = static_cast<int>(parse_count("--threads", *v));
   if (const auto* v = parsed.value("--precision")) c.precision = parse_precision(*v);
-  if (const auto* v = parsed.value("--seed")) c.seed = static_cast<std::uint64_t>(parse_count("--seed", *v, 0, 0x1p53));
+  if (const auto* v = parsed.value("--seed")) c.seed = parse_unsigned("--seed", *v);
   if (const auto* v = parsed.value("--episode-steps"))
     c.episode_steps = static_cast<int>(parse_count("--episode-steps", *v, 0));
   if (const auto* v = parsed.value("--compression")) {
