@@ -297,6 +297,9 @@ struct RolloutWriter::Impl {
       throw RolloutFileError(path + ": is not a regular file (a link, device, FIFO or socket), which the rollout file "
                                     "would replace; give the path of a file");
     const std::string creating = path + ".creating";
+    // a leftover "<path>.creating" goes first: were it a link, creating the
+    // file through it would truncate the link's target
+    std::filesystem::remove(creating, ignored);
     file = create_file(creating, path);
     try {
       fill_new_file(statics, attributes, chunk_steps, compression);

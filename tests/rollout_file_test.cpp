@@ -380,6 +380,21 @@ TEST(RolloutFile, ReplacesAFileOnlyOnceTheNewOneIsSetUp) {
   writer.close();
 }
 
+// A "<path>.creating" left behind as a link (a killed run's leftover, or
+// planted) is replaced, not followed: the file it points to stays as it was.
+TEST(RolloutFile, ALeftoverCreatingLinkIsNotFollowed) {
+  const TempDir dir;
+  const std::string path = dir.file("linked.h5"), target = dir.file("precious.txt");
+  std::ofstream(target) << "keep me";
+  fs::create_symlink(target, path + ".creating");
+  write_sample(path, 2);
+  std::ifstream in(target);
+  const std::string kept((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_TRUE(kept == "keep me") << "the link's target now holds " << kept.size() << " bytes";
+  EXPECT_EQ(RolloutReader(path).steps(), 2);
+  EXPECT_FALSE(fs::is_symlink(path));
+}
+
 TEST(RolloutFile, ZeroStepsCloseToAnEmptyCompleteFile) {
   const TempDir dir;
   const std::string path = dir.file("empty.h5");
