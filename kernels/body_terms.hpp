@@ -78,8 +78,9 @@ inline void subtract_applied_forces(const KernelModel<lane::scalar_t<L>>& km, co
 // spatial acceleration. The kernels' acceleration a' = a - [R^T g; 0]
 // (gravity as the base's acceleration a0 = [-g; 0]), so
 //   -D (v + w a) = -w D a' - D (v + w [R^T g; 0]):
-// w D joins the body's inertia where it multiplies a' (ABA's IA, CRBA's
-// composite inertia) and D (v + w [R^T g; 0]) its bias force. For a free
+// w D joins the body's inertia where it multiplies a' (ABA's IA, and so
+// the factors of Mt read off it) and D (v + w [R^T g; 0]) its bias force
+// (RNEA takes D (v + w (a' + [R^T g; 0])) whole). For a free
 // body without gravity this is v1 = v0 / (1 + h c) per step.
 // link_damping_inertia gives s D, as BodyInertia parameters.
 template <class L>
