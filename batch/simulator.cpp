@@ -509,12 +509,16 @@ std::vector<StiffDrive> Simulator::stiff_drives() const {
 }
 
 std::vector<std::string> Simulator::warnings() const {
+  refresh_plan();
   std::vector<std::string> lines;
   std::string fast_modes;
   if (!euler_velocity(options_.integrator) && copies() > 0) {
     const double bound = options_.integrator == Integrator::RK4 ? kRk4Bound : kTrapezoidRingBound;
     fast_modes = describe_fast_joint_modes(
-        *model_, fast_joint_modes(*model_, dofs_, q(0), options_.dt / options_.substeps, bound), options_.integrator);
+        *model_,
+        fast_joint_modes(*model_, dofs_, q(0), options_.dt / options_.substeps, bound,
+                         options_.integrator == Integrator::RK4 && plan_[static_cast<int>(Stage::LinkDamping)].runs),
+        options_.integrator);
   }
   for (std::string line : {describe_stiff_drives(*model_, stiff_drives(), options_.substeps), fast_modes,
                            unenforced_mimics()})

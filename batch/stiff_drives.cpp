@@ -27,14 +27,22 @@ std::vector<StiffDrive> stiff_drives(const Model& model, const std::vector<DofSe
 }
 
 std::vector<StiffDrive> fast_joint_modes(const Model& model, const std::vector<DofSettings>& dofs,
-                                         const Eigen::VectorXd& q, double h, double bound) {
+                                         const Eigen::VectorXd& q, double h, double bound, bool link_damping) {
   std::vector<StiffDrive> fast;
   const Eigen::VectorXd inertia = CopyDynamics(model).mass_matrix(q).diagonal();
+  // per body, the largest link damping rate of its subtree (children come after their parents)
+  std::vector<double> subtree_damping(model.nbody, 0.0);
+  for (int b = model.nbody - 1; b >= 0 && link_damping; --b) {
+    subtree_damping[b] = std::max({subtree_damping[b], model.body_linear_damping[b], model.body_angular_damping[b]});
+    if (model.body_parent[b] >= 0)
+      subtree_damping[model.body_parent[b]] = std::max(subtree_damping[model.body_parent[b]], subtree_damping[b]);
+  }
   for (int k = 0; k < model.nv; ++k) {
     const DofSettings& d = dofs[k];
     const bool acceleration = d.drive_type == DriveType::Acceleration;
     // per unit of the joint's inertia: s^2 + b s + c = 0
-    const double b = (acceleration ? d.drive_damping : d.drive_damping / inertia[k]) + d.damping / inertia[k];
+    const double b = (acceleration ? d.drive_damping : d.drive_damping / inertia[k]) + d.damping / inertia[k] +
+                     subtree_damping[model.dof_body[k]];
     const double c = (acceleration ? d.drive_stiffness : d.drive_stiffness / inertia[k]) + d.spring_stiffness / inertia[k];
     const double discriminant = b * b - 4 * c;
     const double largest = discriminant >= 0 ? 0.5 * (b + std::sqrt(discriminant)) : std::sqrt(c);
@@ -50,7 +58,7 @@ std::string describe_fast_joint_modes(const Model& model, const std::vector<Stif
   const bool rk4 = integrator == Integrator::RK4;
   std::ostringstream out;
   out.precision(3);
-  out << (rk4 ? "RK4 takes drives, springs and damping explicitly, and "
+  out << (rk4 ? "RK4 takes drives, springs and damping (link damping too) explicitly, and "
               : "the trapezoid takes drives, springs and damping by the implicit trapezoidal rule, and ")
       << fast.size() << " DOF(s) are too stiff for its step (h |lambda| " << fast.front().ratio << " at "
       << model.dof_name[fast.front().dof]

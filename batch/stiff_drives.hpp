@@ -42,11 +42,13 @@ std::string describe_stiff_drives(const Model& model, const std::vector<StiffDri
 // the implicit trapezoidal rule, whose error on such a mode changes sign
 // every step and shrinks by less than a fifth per step above 18
 // (kTrapezoidRingBound: (x/2 - 1) / (x/2 + 1) > 0.8). docs/stability.md
-// section 7.
+// section 7. With `link_damping` (RK4, which takes it explicitly too) the
+// links' damping joins kd + c per unit inertia by its bound: the largest
+// c of the bodies the DOF moves (J^T D J <= c M per body).
 constexpr double kRk4Bound = 2.78;  // RK4's stability interval on the negative real axis: [-2.785, 0]
 constexpr double kTrapezoidRingBound = 18.0;
 std::vector<StiffDrive> fast_joint_modes(const Model& model, const std::vector<DofSettings>& dofs,
-                                         const Eigen::VectorXd& q, double h, double bound);
+                                         const Eigen::VectorXd& q, double h, double bound, bool link_damping = false);
 // One line as above for the integrator that meets them (RK4 or the
 // trapezoid); empty when there are none.
 std::string describe_fast_joint_modes(const Model& model, const std::vector<StiffDrive>& fast, Integrator integrator);

@@ -20,6 +20,15 @@ std::vector<DofSettings> driven(const Model& model, DriveType type, double kp) {
   return dofs;
 }
 
+// Options of a double-precision step of h with `integrator`.
+StepOptions double_step(Integrator integrator, double h) {
+  StepOptions o;
+  o.dt = h;
+  o.integrator = integrator;
+  o.precision = Precision::Double;
+  return o;
+}
+
 TEST(StiffDrives, ForceDriveRatioIsItsImplicitInertiaOverTheJoints) {
   const Model model = spinner(kInertia);
   const Eigen::VectorXd q = model.neutral_configuration();
@@ -101,11 +110,7 @@ TEST(StiffDrives, Rk4AndTheTrapezoidWarnOfModesTooFastForTheirStep) {
                         {driven(wheel, DriveType::Force, 400.0), 0.02, 4.0},
                         {damped, 0.01, 10.6235}};
   auto run = [&](Integrator integrator, const std::vector<DofSettings>& dofs, double h) {
-    StepOptions o;
-    o.dt = h;
-    o.integrator = integrator;
-    o.precision = Precision::Double;
-    Simulator sim(wheel, 1, o, dofs);
+    Simulator sim(wheel, 1, double_step(integrator, h), dofs);
     sim.set_drive_target(0, Eigen::VectorXd::Constant(1, 0.5), Eigen::VectorXd::Zero(1));
     sim.step(static_cast<int>(std::lround(2.0 / h)));
     return sim;
@@ -124,7 +129,8 @@ TEST(StiffDrives, Rk4AndTheTrapezoidWarnOfModesTooFastForTheirStep) {
     ASSERT_EQ(fast.size(), 1u) << "h " << c.h;
     EXPECT_NEAR(fast[0].ratio, c.ratio, 1e-4);
     ASSERT_EQ(warnings.size(), 1u);
-    EXPECT_NE(warnings[0].find("RK4 takes drives, springs and damping explicitly"), std::string::npos) << warnings[0];
+    EXPECT_NE(warnings[0].find("RK4 takes drives, springs and damping (link damping too) explicitly"), std::string::npos)
+        << warnings[0];
     EXPECT_EQ(sim.fault(0), Fault::NonFiniteState) << "h " << c.h << ": diverged";
   }
   std::vector<DofSettings> stiff = driven(wheel, DriveType::Force, 1e5);
@@ -132,11 +138,7 @@ TEST(StiffDrives, Rk4AndTheTrapezoidWarnOfModesTooFastForTheirStep) {
   const std::vector<StiffDrive> ringing = fast_joint_modes(wheel, stiff, q, 0.01, kTrapezoidRingBound);
   ASSERT_EQ(ringing.size(), 1u);
   EXPECT_NEAR(ringing[0].ratio, 31.6228, 1e-4);
-  StepOptions o;
-  o.dt = 0.01;
-  o.integrator = Integrator::Trapezoid;
-  o.precision = Precision::Double;
-  Simulator trapezoid(wheel, 1, o, stiff);
+  Simulator trapezoid(wheel, 1, double_step(Integrator::Trapezoid, 0.01), stiff);
   trapezoid.set_drive_target(0, Eigen::VectorXd::Constant(1, 0.5), Eigen::VectorXd::Zero(1));
   trapezoid.step(37);
   double error[3];
@@ -153,6 +155,31 @@ TEST(StiffDrives, Rk4AndTheTrapezoidWarnOfModesTooFastForTheirStep) {
   const Simulator euler = run(Integrator::SemiImplicitEuler, stiff, 0.01);
   EXPECT_TRUE(euler.warnings().empty()) << euler.warnings().front();
   EXPECT_NEAR(euler.q(0)[0], 0.5, 1e-9) << "settled";
+}
+
+// RK4 takes joint damping and link damping explicitly, and their rates add:
+// the wheel's joint damping 1 N m s on I = 0.01 is 100 / s and its angular
+// link damping 200 / s (about its COM, on the axis), each within RK4's
+// bound at h = 0.01 (h |lambda| 1 and 2; the Simulator accepts the link
+// damping alone), together 300 / s, h |lambda| 3: warned, and the spin
+// grows by RK4's |1 - 3 + 9/2 - 27/6 + 81/24| = 1.375 per step.
+TEST(StiffDrives, Rk4WarnsOfJointAndLinkDampingTogether) {
+  Model wheel = spinner(kInertia);
+  wheel.body_angular_damping[0] = 200.0;
+  std::vector<DofSettings> dofs = default_dof_settings(wheel);
+  dofs[0].damping = 1.0;
+  const Eigen::VectorXd q = Eigen::VectorXd::Zero(1);
+  EXPECT_TRUE(fast_joint_modes(wheel, dofs, q, 0.01, kRk4Bound).empty()) << "the joint alone is within the bound";
+  const std::vector<StiffDrive> fast = fast_joint_modes(wheel, dofs, q, 0.01, kRk4Bound, true);
+  ASSERT_EQ(fast.size(), 1u);
+  EXPECT_NEAR(fast[0].ratio, 3.0, 1e-12);
+  Simulator sim(wheel, 1, double_step(Integrator::RK4, 0.01), dofs);
+  sim.set_state(0, q, Eigen::VectorXd::Constant(1, 1.0));
+  ASSERT_EQ(sim.warnings().size(), 1u);
+  EXPECT_NE(sim.warnings()[0].find("1 DOF(s) are too stiff for its step (h |lambda| 3 at wheel"), std::string::npos)
+      << sim.warnings()[0];
+  sim.step(50);
+  EXPECT_NEAR(sim.v(0)[0], std::pow(1.375, 50), 1e-6 * std::pow(1.375, 50)) << "diverges as predicted";
 }
 
 }  // namespace
