@@ -349,8 +349,8 @@ template <class L>
 void StepEngine<L>::free_acceleration(const T* q, const T* v, T h, const BlockInputs<T>& in, const T* tau_ff,
                                       JointTermInputs<T> terms_in, JointTerms joint_terms, Scratch& s) {
   joint_transforms<L>(km_, q, s.ws);
-  const bool implicit_damping = plan_.link_damping && link_damping_weight(options_.integrator, h) != 0;
-  if (km_.needs_world(plan_.wrenches, true, implicit_damping)) world_transforms<L>(km_, s.ws);
+  if (km_.needs_world(plan_.wrenches, true, in.link_damping && in.link_damping_weight != 0))
+    world_transforms<L>(km_, s.ws);
   terms_in.q = q;
   terms_in.v = v;
   if (joint_terms == JointTerms::AtThisState) joint_term_prepass<L>(km_, jm_, joint_term_weight(h), terms_in, s.terms);

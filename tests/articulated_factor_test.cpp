@@ -114,25 +114,9 @@ struct Factors {
   }
 };
 
-// w_d sum_b J_b^T D_b J_b, the link damping's share of Mt at weight w_d,
-// from the bodies' [v_com; w] Jacobians, D_b = diag(c_lin m, c_ang R I_c R^T).
-Eigen::MatrixXd link_damping_share(const Model& model, const Eigen::VectorXd& q, double weight) {
-  const CopyDynamics dyn(model, Precision::Double);
-  const Eigen::MatrixXd J = dyn.com_jacobian(q);
-  const std::vector<Eigen::Isometry3d> poses = dyn.body_poses(q);
-  Eigen::MatrixXd share = Eigen::MatrixXd::Zero(model.nv, model.nv);
-  for (int b = 0; b < model.nbody; ++b) {
-    const Eigen::Matrix3d R = poses[b].linear();
-    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(6, 6);
-    D.topLeftCorner<3, 3>() = model.body_linear_damping[b] * model.body_mass[b] * Eigen::Matrix3d::Identity();
-    D.bottomRightCorner<3, 3>() = model.body_angular_damping[b] * R * model.body_inertia[b] * R.transpose();
-    share += weight * J.middleRows(6 * b, 6).transpose() * D * J.middleRows(6 * b, 6);
-  }
-  return share;
-}
-
 // Largest backward error |Mt x - b| / (|Mt| |x|) over the block's copies,
-// Mt from CRBA in double (with link damping's share from Jacobians).
+// Mt from CRBA in double (with link damping's share w J^T D J from
+// Jacobians: test::link_damping_matrix).
 template <class L>
 double worst_backward_error(const Model& model, const Inputs& inputs, const std::vector<L>& factors,
                             std::mt19937& rng) {
@@ -144,7 +128,7 @@ double worst_backward_error(const Model& model, const Inputs& inputs, const std:
   for (int c = 0; c < Factors<L>::W; ++c) {
     Eigen::MatrixXd Mt = dyn.mass_matrix(inputs.q[c]);
     Mt.diagonal() += inputs.w[c];
-    if (inputs.link_damping_weight != 0) Mt += link_damping_share(model, inputs.q[c], inputs.link_damping_weight);
+    if (inputs.link_damping_weight != 0) Mt += inputs.link_damping_weight * test::link_damping_matrix(model, inputs.q[c]);
     worst = std::max(worst, (Mt * x[c] - b[c]).norm() / (Mt.norm() * x[c].norm()));
   }
   return worst;

@@ -194,6 +194,24 @@ class ModelCaseTest : public ::testing::TestWithParam<ModelCase> {
   std::unique_ptr<CopyDynamics> dyn_;
 };
 
+// Link damping's generalized matrix sum_b J_b^T D_b J_b at q, from the
+// bodies' [v_com; w] Jacobians (world axes) and D_b = diag(c_lin m 1,
+// c_ang R I_c R^T) about each COM: what the kernels' -D v is in joint space.
+inline Eigen::MatrixXd link_damping_matrix(const Model& model, const Eigen::VectorXd& q) {
+  const CopyDynamics dyn(model, Precision::Double);
+  const Eigen::MatrixXd J = dyn.com_jacobian(q);
+  const std::vector<Eigen::Isometry3d> poses = dyn.body_poses(q);
+  Eigen::MatrixXd matrix = Eigen::MatrixXd::Zero(model.nv, model.nv);
+  for (int b = 0; b < model.nbody; ++b) {
+    const Eigen::Matrix3d R = poses[b].linear();
+    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(6, 6);
+    D.topLeftCorner<3, 3>() = model.body_linear_damping[b] * model.body_mass[b] * Eigen::Matrix3d::Identity();
+    D.bottomRightCorner<3, 3>() = model.body_angular_damping[b] * R * model.body_inertia[b] * R.transpose();
+    matrix += J.middleRows(6 * b, 6).transpose() * D * J.middleRows(6 * b, 6);
+  }
+  return matrix;
+}
+
 // A test with a folder of its own for the files it writes (scenes, URDFs),
 // removed after it: dir_ is unique to the process and the test.
 class SceneFileTest : public ::testing::Test {
