@@ -359,7 +359,7 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   make_plan();
   const StepPlan plan = step_plan();
   if (options_.integrator == Integrator::RK4 &&
-      (plan.hard_limits || plan.velocity_limits || plan.coulomb_friction || plan.contacts))
+      (plan.mimic_joints || plan.hard_limits || plan.velocity_limits || plan.coulomb_friction || plan.contacts))
     throw std::invalid_argument(
         "StepOptions::integrator RK4 integrates scenes without solver rows, and this scene has " + rows_summary() +
         ": use SemiImplicitEuler, Trapezoid or ExplicitEuler, or force those stages off");
@@ -425,6 +425,7 @@ void Simulator::make_plan() const {
              "copies with their own inertial parameters"),
       decide(Stage::PerCopyJointParameters, mode(Stage::PerCopyJointParameters), copies_with_any(own_joint_parameters_),
              "copies with their own drive gains, damping, armature or joint friction"),
+      decide(Stage::MimicJoints, mode(Stage::MimicJoints), static_cast<int>(model_->mimics.size()), "mimic tags"),
       decide(Stage::HardLimits, mode(Stage::HardLimits), hard, "DOFs with hard position limits"),
       decide(Stage::VelocityLimits, mode(Stage::VelocityLimits), velocity, "DOFs with velocity limits"),
       decide(Stage::CoulombFriction, mode(Stage::CoulombFriction), coulomb, "DOFs with Coulomb friction"),
@@ -444,6 +445,7 @@ StepPlan Simulator::step_plan() const {
   p.link_damping = runs(Stage::LinkDamping);
   p.per_copy_inertia = runs(Stage::PerCopyInertia);
   p.per_copy_joint_parameters = runs(Stage::PerCopyJointParameters);
+  p.mimic_joints = runs(Stage::MimicJoints);
   p.hard_limits = runs(Stage::HardLimits);
   p.velocity_limits = runs(Stage::VelocityLimits);
   p.coulomb_friction = runs(Stage::CoulombFriction);
@@ -453,7 +455,7 @@ StepPlan Simulator::step_plan() const {
 
 std::string Simulator::rows_summary() const {
   std::string out;
-  for (Stage s : {Stage::HardLimits, Stage::VelocityLimits, Stage::CoulombFriction, Stage::Contacts}) {
+  for (Stage s : {Stage::MimicJoints, Stage::HardLimits, Stage::VelocityLimits, Stage::CoulombFriction, Stage::Contacts}) {
     const StageDecision& d = plan_[static_cast<int>(s)];
     if (!d.runs) continue;
     if (!out.empty()) out += ", ";
@@ -503,7 +505,8 @@ std::vector<StiffDrive> Simulator::stiff_drives() const {
   refresh_plan();
   // a drive stiff enough to act as a hard constraint matters beside other ones
   auto runs = [&](Stage stage) { return plan_[static_cast<int>(stage)].runs; };
-  const bool hard = runs(Stage::HardLimits) || runs(Stage::VelocityLimits) || contacts_found();
+  const bool hard =
+      runs(Stage::MimicJoints) || runs(Stage::HardLimits) || runs(Stage::VelocityLimits) || contacts_found();
   if (!runs(Stage::Drives) || !hard || copies() == 0) return {};
   return lockstep::stiff_drives(*model_, dofs_, q(0), options_.dt / options_.substeps);
 }
@@ -529,11 +532,11 @@ std::vector<std::string> Simulator::warnings() const {
 
 std::string Simulator::unenforced_mimics() const {
   const std::vector<Mimic>& mimics = model_->mimics;
-  if (mimics.empty()) return {};
+  if (mimics.empty() || plan_[static_cast<int>(Stage::MimicJoints)].runs) return {};
   const Mimic& first = mimics.front();
-  return "mimic joints: not enforced (" + std::to_string(mimics.size()) + " mimic tag(s), such as " +
-         model_->dof_name[first.dof] + " following " + model_->dof_name[first.leader_dof] +
-         "; each DOF moves on its own)";
+  return "mimic joints: not enforced, their stage forced off (" + std::to_string(mimics.size()) +
+         " mimic tag(s), such as " + model_->dof_name[first.dof] + " following " +
+         model_->dof_name[first.leader_dof] + "; each DOF moves on its own)";
 }
 
 void Simulator::refresh_plan() const {

@@ -232,11 +232,11 @@ class Simulator {
   // What the plan warns of, one line each (describe_plan indents them,
   // `lockstep rollout` prints them on stderr): the stiff drives above; with
   // RK4 or the trapezoid, the DOFs too stiff for its step at copy 0's
-  // configuration (fast_joint_modes); the model's mimic tags, which the step does not enforce yet (each such
-  // DOF moves on its own), and mesh shapes, which take no part in contacts
+  // configuration (fast_joint_modes); the model's mimic tags when their stage is forced off (each such DOF
+  // then moves on its own), and mesh shapes, which take no part in contacts
   // (ContactPairs::notes). Empty when there is nothing to say.
   std::vector<std::string> warnings() const;
-  // The constraint rows per copy (limit, velocity-limit and friction rows).
+  // The constraint rows per copy (mimic, limit, velocity-limit and friction rows).
   int row_count() const;
 
   // State of one copy. set_state also makes it the copy's initial state,

@@ -122,12 +122,28 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     for (int i = 0; i < joint_nv(type); ++i) driven_v_.push_back(model.body_dof_offset[b] + i);
   }
 
-  // Solver rows, DOF by DOF: position limit, velocity limit, friction.
-  auto add_row = [&](JointRowKind kind, int k, double a, double b) {
+  // Solver rows: the mimic couplings, then DOF by DOF position limit,
+  // velocity limit, friction.
+  auto q_index_of = [&](int k) {
     const int body = model.dof_body[k];
-    const int q_index = model.body_q_offset[body] + (k - model.body_dof_offset[body]);
-    row_specs_.push_back({kind, k, q_index, columns_.column_of(km_, k), static_cast<T>(a), static_cast<T>(b)});
+    return model.body_q_offset[body] + (k - model.body_dof_offset[body]);
   };
+  auto add_row = [&](JointRowKind kind, int k, double a, double b) {
+    row_specs_.push_back({kind, k, q_index_of(k), columns_.column_of(km_, k), static_cast<T>(a), static_cast<T>(b)});
+  };
+  // q_f = m q_l + c as PhysX's q_A + G q_B + offset = 0: A the follower,
+  // G = -m, offset -c. First, so that the sweeps take the limits and
+  // contacts after them: those hold at the mimic's expense, as in PhysX.
+  if (plan.mimic_joints)
+    for (const Mimic& mimic : model.mimics) {
+      add_row(JointRowKind::Mimic, mimic.dof, -mimic.offset, 0);
+      JointRowSpec<T>& row = row_specs_.back();
+      row.dof2 = mimic.leader_dof;
+      row.q_index2 = q_index_of(mimic.leader_dof);
+      row.column2 = columns_.column_of(km_, mimic.leader_dof);
+      row.gear = static_cast<T>(-mimic.multiplier);
+      ++mimic_rows_;
+    }
   // A row stage forced On gets a row on every DOF it can act on, even where
   // the scene gives it nothing to do (infinite limits, zero friction): such
   // rows never push, and cost what the stage costs.
@@ -698,9 +714,11 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   s.contact_columns = false;
   s.contact_rows_spilled = false;
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
-  // the joint rows a lane needs at the free velocity (solve_blocks)
-  for (int r = 0; r < mj; ++r) s.need[r] = !rest && !s.need[r];  // s.need held the row's slack
-  s.joint_rows_needed = lane::any<L>(!rest && !joint_rows_slack);
+  // the joint rows a lane needs at the free velocity (solve_blocks); a
+  // mimic row wherever the lane solves, or the other rows' impulses would
+  // break it
+  for (int r = 0; r < mj; ++r) s.need[r] = r < mimic_rows_ ? !rest : !rest && !s.need[r];  // s.need held the row's slack
+  s.joint_rows_needed = lane::any<L>(!rest && (mimic_rows_ > 0 ? lane::mask_t<L>(true) : !joint_rows_slack));
 }
 
 // The columns of Mt^-1 that the round's joint rows read D off
@@ -710,11 +728,12 @@ template <class L>
 void StepEngine<L>::build_joint_columns(Scratch& s) const {
   int n = 0;
   for (int a = 0; a < s.needed_joint_rows; ++a) {
-    const int c = row_specs_[s.needed_source[a]].column;
-    if (!s.column_built[c]) {
-      s.column_built[c] = 1;
-      s.new_columns[n++] = c;
-    }
+    const JointRowSpec<T>& spec = row_specs_[s.needed_source[a]];
+    for (const int c : {spec.column, spec.column2})
+      if (c >= 0 && !s.column_built[c]) {
+        s.column_built[c] = 1;
+        s.new_columns[n++] = c;
+      }
   }
   joint_row_columns<L>(km_, columns_, s.ws, s.rows, s.new_columns.data(), n);
   build_contact_columns(s);
@@ -730,8 +749,8 @@ void StepEngine<L>::build_contact_columns(Scratch& s) const {
 
 // For check_held_rows, the round's coupling of every distinct joint-row DOF
 // d with its rows a: C_da = (Mt^-1 J_a^T)[d], so that d's velocity is
-// u_free[d] + sum_a C_da lambda_a; a joint row r on d has the velocity
-// sigma_r times that. D's joint row r is sigma_r C_r. (sigma_r = +-1:
+// u_free[d] + sum_a C_da lambda_a; a one-DOF joint row r on d has the
+// velocity sigma_r times that. D's joint row r is sigma_r C_r. (sigma_r = +-1:
 // the product is exact, and so is the sum's sign, so v_r has the bits of
 // v_free_r + sum_a D_ra lambda_a.)
 template <class L>
@@ -745,7 +764,7 @@ void StepEngine<L>::build_held_coupling(Scratch& s) const {
     L* C = &s.held_coupling[d * n];
     for (int a = 0; a < nj; ++a) {
       const int r = s.needed_source[a];
-      C[a] = rs.sigma[r] * rs.columns[row_specs_[r].column * nv + dof];
+      C[a] = rs.sigma[r] * joint_row_response(row_specs_[r], rs, nv, dof);
     }
     for (int a = nj; a < n; ++a) C[a] = s.contacts.X[(a - nj) * nv + dof];
   }
@@ -895,7 +914,7 @@ void StepEngine<L>::spill_contact_rows(Scratch& s) const {
 // in the others), then the contact rows. A round of the contact rows
 // alone solves them where prepare_rows built them. D's entries of the
 // joint rows are read off the columns of Mt^-1 here (joint_row_delassus,
-// contact_joint_delassus), only those of the rows the round takes; the
+// J_r X_i), only those of the rows the round takes; the
 // contacts' own block from where spill_contact_rows put it.
 template <class L>
 void StepEngine<L>::build_round(Scratch& s) const {
@@ -921,11 +940,11 @@ void StepEngine<L>::build_round(Scratch& s) const {
     copy_row(rows, r, sub, a, nj - mj, a < nj ? s.need[r] : all);  // contact friction: its normal
     if (a < nj) {
       for (int b = 0; b < nj; ++b) D[a * n + b] = joint_row_delassus<L>(row_specs_, s.rows, nv, r, source[b]);
-      // the coupling with the contacts, into both of its entries
+      // the coupling with the contacts, J_r X_i (X_i = Mt^-1 J_i^T,
+      // contact_columns), into both of its entries
       const L sigma = s.rows.sigma[r];
-      const int dof = row_specs_[r].dof;
       for (int b = nj; b < n; ++b)
-        D[a * n + b] = D[b * n + a] = contact_joint_delassus<L>(sigma, dof, s.contacts, source[b] - mj);
+        D[a * n + b] = D[b * n + a] = sigma * joint_row_dofs(row_specs_[r], &s.contacts.X[(source[b] - mj) * nv]);
     } else {
       for (int b = nj; b < n; ++b) D[a * n + b] = rows.D[r * m + source[b]];
     }
@@ -991,7 +1010,7 @@ void StepEngine<L>::begin_held_check(Scratch& s, T h) const {
     s.held_speed[c] = inf;
     s.dof_displacement[c] = zero;
   }
-  for (int r = 0; r < static_cast<int>(row_specs_.size()); ++r) {
+  for (int r = mimic_rows_; r < static_cast<int>(row_specs_.size()); ++r) {  // a mimic row is never held
     L& speed = s.held_speed[row_specs_[r].column];
     const L bound = row_speed_bound<L>(row_specs_[r], s.rows.rows.error[r], s.rows.rows.hi[r], h);
     speed = lane::select(s.need[r], speed, lane::min(speed, bound));
@@ -1034,7 +1053,7 @@ void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
     // sigma_r w_r per row.
     const L* sigma = s.rows.sigma.data();
     const L inv_substep(T(iterations) / h);
-    for (int r = 0; r < mj; ++r) {
+    for (int r = mimic_rows_; r < mj; ++r) {  // a mimic row is never held (prepare_rows)
       const int c = row_specs_[r].column;
       const L v = sigma[r] * velocity[c];
       const bool positional = rows.positional[r] != 0;
@@ -1056,7 +1075,8 @@ bool StepEngine<L>::end_round(Scratch& s) const {
   const int mj = static_cast<int>(row_specs_.size());
   if (options_.solver != SolverType::TGS) {
     needed_velocity_change(s);
-    for (int r = 0; r < mj; ++r) s.violated[r] = !joint_row_slack<L>(row_specs_, s.rows, r, s.contacts.dv.data());
+    for (int r = mimic_rows_; r < mj; ++r)  // a mimic row is never held (prepare_rows)
+      s.violated[r] = !joint_row_slack<L>(row_specs_, s.rows, r, s.contacts.dv.data());
   }
   bool grew = false;
   for (int r = 0; r < mj; ++r) {
@@ -1071,7 +1091,8 @@ bool StepEngine<L>::end_round(Scratch& s) const {
 
 // RaiSim's torque over the step by source, with dv = v1 - v0:
 // drive tau_cmd - (w_drive / h) dv, passive f - (w_passive / h) dv, and the
-// solver's impulses / h split into friction and limits. With substeps, the
+// solver's impulses / h split into friction and limits (with the mimic
+// couplings). With substeps, the
 // mean over the step's pipeline runs (each adds its share, the first
 // overwrites).
 template <class L>
@@ -1094,11 +1115,14 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
     add(actuation + k * W, s.terms.actuation[k], first_run);
     if (first_run) lane::store(L(T(0)), friction + k * W), lane::store(L(T(0)), limits + k * W);
   }
+  // a mimic row's impulse acts on both its DOFs (J^T lambda), with the limits
   const T* impulse = batch_.impulse.block(block);
   for (std::size_t r = 0; r < row_specs_.size(); ++r) {
     const JointRowSpec<T>& spec = row_specs_[r];
-    T* out = (spec.kind == JointRowKind::Friction ? friction : limits) + spec.dof * W;
-    add(out, s.rows.sigma[r] * lane::load<L>(impulse + r * W) * inv_h, false);
+    T* out = spec.kind == JointRowKind::Friction ? friction : limits;
+    const L torque = s.rows.sigma[r] * lane::load<L>(impulse + r * W) * inv_h;
+    add(out + spec.dof * W, torque, false);
+    if (spec.dof2 >= 0) add(out + spec.dof2 * W, L(spec.gear) * torque, false);
   }
 }
 

@@ -26,7 +26,7 @@ struct StepPlan {
   // else every block reads one block of the scene's drive gains, damping,
   // armature and joint friction (all copies hold those)
   bool per_copy_joint_parameters = false;
-  bool hard_limits = false, velocity_limits = false, coulomb_friction = false;
+  bool mimic_joints = false, hard_limits = false, velocity_limits = false, coulomb_friction = false;
   bool contacts = false;
 };
 
@@ -222,6 +222,7 @@ class StepEngine final : public Simulator::Engine {
   KernelModel<T> km_;
   JointTermModel<T> jm_;
   std::vector<JointRowSpec<T>> row_specs_;
+  int mimic_rows_ = 0;  // the first rows of row_specs_: mimic couplings
   JointRowColumns columns_;  // the DOFs joint rows act on
   std::vector<ContactPairSpec<T>> contact_pairs_;  // empty unless plan.contacts
   // With conserve_linear_momentum: the floating articulations' root bodies,

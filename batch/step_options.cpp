@@ -25,6 +25,7 @@ const char* stage_name(Stage stage) {
     case Stage::LinkDamping: return "link damping";
     case Stage::PerCopyInertia: return "per-copy inertia";
     case Stage::PerCopyJointParameters: return "per-copy joint parameters";
+    case Stage::MimicJoints: return "mimic joints";
     case Stage::HardLimits: return "hard limits";
     case Stage::VelocityLimits: return "velocity limits";
     case Stage::CoulombFriction: return "Coulomb friction";

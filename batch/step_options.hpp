@@ -108,6 +108,7 @@ enum class Stage : int {
   LinkDamping,             // links' linear and angular damping (LinkSpec), implicit with the Eulers
   PerCopyInertia,          // each copy's own inertial parameters; skipped, all share the model's
   PerCopyJointParameters,  // each copy's own drive gains, damping, armature, joint friction; skipped, the scene's
+  MimicJoints,             // solver rows: URDF mimic tags as equalities q_f = m q_l + c
   HardLimits,              // solver rows: one-sided position limits
   VelocityLimits,          // solver rows: |v| bounds
   CoulombFriction,         // solver rows: boxed friction impulses

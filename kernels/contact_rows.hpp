@@ -402,8 +402,8 @@ LOCKSTEP_INLINE void slot_pair_delassus(const ContactScratch<L>& s, int c1, int 
 // rows reach 9 of anymal_b's 18 DOFs, two feet share the base's 6. A
 // compliant normal row adds its compliance 1 / (h (k h + c)) to its
 // diagonal; an empty slot's rows, and rows with no mobility, get a unit
-// diagonal (their impulse is 0). The coupling with the joint rows is
-// contact_joint_delassus's.
+// diagonal (their impulse is 0). The coupling with a joint row r is
+// J_r X_i (StepEngine::build_round).
 template <class L>
 void contact_delassus(const KernelModel<lane::scalar_t<L>>& km, const ContactParams<lane::scalar_t<L>>& p,
                       const lane::scalar_t<L>* H, lane::scalar_t<L> h, ContactScratch<L>& s, RowBlock<L>& rows) {
@@ -479,14 +479,6 @@ void contact_columns(const KernelModel<lane::scalar_t<L>>& km, const lane::scala
     if (k == 3) ltdl_lower_solve_many<3, L>(km, H, X, stride);
     else ltdl_lower_solve_many<4, L>(km, H, X, stride);
   }
-}
-
-// The coupling of contact row i with a joint row on DOF `dof` with sign
-// sigma (J_r = sigma e_dof): D_ri = D_ir = sigma X_i[dof]. Needs
-// contact_columns.
-template <class L>
-inline L contact_joint_delassus(const L& sigma, int dof, const ContactScratch<L>& s, int i) {
-  return sigma * s.X[i * s.nv + dof];
 }
 
 // s.dv = Mt^-1 J^T x = L^-1 (sum_i x_i Z_i): the velocity change of the

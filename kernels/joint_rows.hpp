@@ -1,8 +1,9 @@
-// Joint-space solver rows: hard position limits, velocity limits and Coulomb
-// joint friction. Each acts on one DOF k with the Jacobian J = sigma e_k,
-// sigma = +-1 per lane (which limit the joint heads for; +1 for the others),
-// so D = J Mt^-1 J^T is read off the columns Mt^-1 e_k, computed once per
-// distinct DOF from the tree-sparse factorisation of Mt = M + diag(w).
+// Joint-space solver rows: mimic couplings, hard position limits, velocity
+// limits and Coulomb joint friction. A limit or friction row acts on one DOF
+// k with the Jacobian J = sigma e_k, sigma = +-1 per lane (which limit the
+// joint heads for; +1 for the others); a mimic row on two, J = sigma (e_A +
+// G e_B). D = J Mt^-1 J^T is read off the columns Mt^-1 e_k, computed once
+// per distinct DOF from the tree-sparse factorisation of Mt = M + diag(w).
 #pragma once
 
 #include "kernels/crba.hpp"
@@ -14,6 +15,7 @@ enum class JointRowKind : unsigned char {
   PositionLimit,  // sigma v >= -e/dt (speculative) with lambda >= 0; e: distance to the limit the joint heads for
   VelocityLimit,  // -v_max <= v <= v_max, lambda free (a band row)
   Friction,       // v = 0 with |lambda| <= friction dt
+  Mimic,          // q_A + G q_B + offset = 0 (PhysX's mimic joint): an equality, lambda free
 };
 
 // One row's topology and parameters, shared by every copy.
@@ -23,7 +25,11 @@ struct JointRowSpec {
   int dof;
   int q_index;  // the DOF's entry in q (1-DOF joints only carry limits)
   int column;  // index of the DOF among the distinct row DOFs
-  T a = 0, b = 0;  // PositionLimit: lower, upper; VelocityLimit: v_max; Friction: friction force
+  T a = 0, b = 0;  // PositionLimit: lower, upper; VelocityLimit: v_max; Friction: friction force; Mimic: offset
+  // Mimic: the second DOF B of J = e_dof + gear e_B, its entry in q and its
+  // column; -1 for the other kinds.
+  int dof2 = -1, q_index2 = -1, column2 = -1;
+  T gear = 0;
   // VelocityLimit on a DOF with a hard position limit: that row's range
   // (joint_row: the band lets the limit's correction through).
   T range_lower = -std::numeric_limits<T>::infinity(), range_upper = std::numeric_limits<T>::infinity();
@@ -64,9 +70,23 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
   constexpr std::size_t W = lane::width_v<L>;
   const T inf = std::numeric_limits<T>::infinity();
   const L one(T(1)), zero(T(0));
-  const L u = v_free[spec.dof];
+  const L u = spec.dof2 < 0 ? v_free[spec.dof] : lane::fmadd(L(spec.gear), v_free[spec.dof2], v_free[spec.dof]);
   JointRow<L> row{one, zero, zero, zero, L(-inf), L(inf), u, false};
   switch (spec.kind) {
+    case JointRowKind::Mimic: {
+      // An equality on e = q_A + G q_B + offset, lambda free. Its sign
+      // turned against e, the row's error is -|e| <= 0: positional_target's
+      // violated branch asks for the share erp of it back per step,
+      // J u = -erp e / dt, from either side (and TGS, advancing the error
+      // past zero, for the overshoot back at once).
+      const L qa = lane::load<L>(q + spec.q_index * W), qb = lane::load<L>(q + spec.q_index2 * W);
+      const L e = lane::fmadd(L(spec.gear), qb, qa) + L(spec.a);
+      row.sigma = lane::select(e > zero, -one, one);
+      row.error = row.sigma * e;
+      row.target = row.target_hi = positional_target(row.error, L(T(1) / dt), L(erp / dt));
+      row.positional = true;
+      break;
+    }
     case JointRowKind::PositionLimit: {
       // the limit nearer to where the free motion ends the step: a fast
       // joint heading for the far limit of a narrow range meets that one
@@ -103,13 +123,20 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
   return row;
 }
 
+// J_r x / sigma_r for a vector x (nv) over the DOFs: x[dof], plus
+// G x[dof2] for a mimic row.
+template <class T, class L>
+LOCKSTEP_INLINE L joint_row_dofs(const JointRowSpec<T>& spec, const L* x) {
+  return spec.dof2 < 0 ? x[spec.dof] : lane::fmadd(L(spec.gear), x[spec.dof2], x[spec.dof]);
+}
+
 // Joint row r's velocity (built by build_joint_rows) once other rows'
 // impulses change the DOF velocities by dv (nv): its coupling to the others
-// read from dv (sigma_r dv[dof_r]) instead of from D.
+// read from dv (sigma_r J_r dv / sigma_r) instead of from D.
 template <class L>
 L joint_row_velocity(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const JointRowScratch<L>& s, int r,
                      const L* dv) {
-  return lane::fmadd(s.sigma[r], dv[specs[r].dof], s.rows.v_free[r]);
+  return lane::fmadd(s.sigma[r], joint_row_dofs(specs[r], dv), s.rows.v_free[r]);
 }
 
 // Per lane: true where joint row r, at zero impulse, needs none at that
@@ -127,6 +154,8 @@ lane::mask_t<L> joint_row_slack(const std::vector<JointRowSpec<lane::scalar_t<L>
 // Sufficient, not necessary. error: the row's distance to its limit;
 // impulse_bound: a friction row's largest impulse (a built row's error
 // and hi).
+//   mimic: no bound (infinite): StepEngine takes it wherever a lane
+//     solves, so it is never held;
 //   velocity limit: |w| <= v_max is the row's own band;
 //   friction: at rest only at w = 0 (V = 0), or always with no friction;
 //   position limit, error e >= 0: with V = e / (4 h) the displacement of the
@@ -139,6 +168,7 @@ inline L row_speed_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const L& e
   using T = lane::scalar_t<L>;
   const L inf(std::numeric_limits<T>::infinity()), zero(T(0));
   switch (spec.kind) {
+    case JointRowKind::Mimic: return inf;
     case JointRowKind::PositionLimit: return error * L(T(1) / (T(4) * h));
     case JointRowKind::VelocityLimit: return L(spec.a);
     case JointRowKind::Friction: break;
@@ -168,7 +198,9 @@ bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& 
     } else if (spec.kind == JointRowKind::Friction) {
       impulse_bound = friction_impulse_bound<L>(spec, friction, dt);
     }
-    if (lane::all<L>(lane::abs(v_free[spec.dof]) <= row_speed_bound<L>(spec, error, impulse_bound, dt))) continue;
+    if (spec.dof2 < 0 &&
+        lane::all<L>(lane::abs(v_free[spec.dof]) <= row_speed_bound<L>(spec, error, impulse_bound, dt)))
+      continue;
     const JointRow<L> row = joint_row<L>(spec, q, v_free, friction, dt, erp);
     if (!lane::all<L>(row.at_rest())) return false;
   }
@@ -269,20 +301,33 @@ void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const JointRowC
   ltdl_lower_solve_columns<L>(km, H, reinterpret_cast<T*>(s.columns.data()), stride, which, count);
 }
 
+// Entry k of Mt^-1 J_c^T / sigma_c for joint row c: (Mt^-1)_{k, dof_c},
+// plus G (Mt^-1)_{k, dof2_c} for a mimic row, off its columns
+// (joint_row_columns).
+template <class L>
+inline L joint_row_response(const JointRowSpec<lane::scalar_t<L>>& spec, const JointRowScratch<L>& s, int nv, int k) {
+  const L x = s.columns[spec.column * nv + k];
+  return spec.dof2 < 0 ? x : lane::fmadd(L(spec.gear), s.columns[spec.column2 * nv + k], x);
+}
+
 // Entry (r, c) of the joint rows' block of the Delassus matrix,
-// sigma_r sigma_c (Mt^-1)_{dof_r, dof_c}, read off c's column
-// (joint_row_columns). A solve takes the entries of the rows it needs
-// only: a scene's joint rows are mostly slack (limits not reached), so
-// their whole block would be mostly unread.
+// J_r Mt^-1 J_c^T: sigma_r sigma_c (Mt^-1)_{dof_r, dof_c} for two
+// one-DOF rows, read off c's column (joint_row_columns). A solve takes the
+// entries of the rows it needs only: a scene's joint rows are mostly slack
+// (limits not reached), so their whole block would be mostly unread.
 template <class L>
 inline L joint_row_delassus(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const JointRowScratch<L>& s,
                             int nv, int r, int c) {
-  return s.sigma[r] * s.sigma[c] * s.columns[specs[c].column * nv + specs[r].dof];
+  const JointRowSpec<lane::scalar_t<L>>& row = specs[r];
+  const L at_dof = joint_row_response(specs[c], s, nv, row.dof);
+  const L J = row.dof2 < 0 ? at_dof : lane::fmadd(L(row.gear), joint_row_response(specs[c], s, nv, row.dof2), at_dof);
+  return s.sigma[r] * s.sigma[c] * J;
 }
 
-// out[k] += sum_i sigma_r x_i (Mt^-1 e_{dof_r})[k] over the rows
-// r = rows[i], i < count, in that order: the velocity change of impulses x
-// (lambda), or the displacement of lambda_sum. Their columns must be built
+// out[k] += sum_i x_i (Mt^-1 J_r^T)[k] over the rows r = rows[i], i <
+// count, in that order (sigma_r (Mt^-1 e_{dof_r})[k], and a mimic row's
+// G times its second column): the velocity change of impulses x (lambda),
+// or the displacement of lambda_sum. Their columns must be built
 // (joint_row_columns).
 template <class L>
 void add_row_impulses(const KernelModel<lane::scalar_t<L>>& km, const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs,
@@ -293,6 +338,10 @@ void add_row_impulses(const KernelModel<lane::scalar_t<L>>& km, const std::vecto
     const L scaled = s.sigma[r] * x[i];
     const L* column = &s.columns[specs[r].column * nv];
     for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(scaled, column[k], out[k]);
+    if (specs[r].dof2 < 0) continue;
+    const L second = scaled * L(specs[r].gear);
+    column = &s.columns[specs[r].column2 * nv];
+    for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(second, column[k], out[k]);
   }
 }
 

@@ -37,10 +37,9 @@ struct Shape {
   Eigen::Vector3d mesh_scale = Eigen::Vector3d::Ones();
 };
 
-// A mimic tag: q[dof] = multiplier * q[leader_dof] + offset. Read, checked
-// and kept, but not enforced yet: neither the dynamics kernels nor the
-// simulation step couple the two DOFs (Simulator::describe_plan and
-// `lockstep rollout` say so for a model that has tags).
+// A mimic tag: q[dof] = multiplier * q[leader_dof] + offset. The
+// simulation step holds it with a solver row (Stage::MimicJoints,
+// docs/conventions.md "Mimic joints"); the dynamics queries ignore it.
 struct Mimic {
   int dof = -1;
   int leader_dof = -1;

@@ -149,6 +149,26 @@ TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueWithLinkDamping) {
     }
 }
 
+// One copy of the fixed-base `model` (with `armature`, if given) driven
+// toward `target` for `steps` steps: step_and_compare's residual, and the
+// last step's applied torque.
+struct DrivenRun {
+  Residual residual;
+  AppliedTorque last;
+};
+DrivenRun drive_and_compare(const Model& model, const std::vector<DofSettings>& dofs, Precision precision,
+                            const Eigen::VectorXd& target, int steps, const Eigen::VectorXd& armature = {}) {
+  StepOptions o;
+  o.precision = precision;
+  o.record_applied_torque = true;
+  o.record_motion = true;
+  Simulator sim(model, 1, o, dofs);
+  if (armature.size()) sim.set_armature(0, armature);
+  sim.set_drive_target(0, target, Eigen::VectorXd::Zero(model.nv));
+  const Residual r = step_and_compare(sim, steps);
+  return {r, sim.applied_torque(0)};
+}
+
 // ur5 with drives past its hard limits, velocity limits, Coulomb friction,
 // damping and armature: the joint rows' impulses are in the joint forces.
 TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueWithEveryJointRow) {
@@ -160,20 +180,33 @@ TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueWithEveryJointRow) {
     dofs[k].drive_damping = 20;
     armature[k] = 0.05 * (k + 1);
   }
+  Eigen::VectorXd target = Eigen::VectorXd::Constant(model.nq, 1.0);  // beyond the limits at 0.4
+  target[1] = -1.0;
   for (Precision precision : {Precision::Float, Precision::Double}) {
-    StepOptions o;
-    o.precision = precision;
-    o.record_applied_torque = true;
-    o.record_motion = true;
-    Simulator sim(model, 1, o, dofs);
-    sim.set_armature(0, armature);
-    Eigen::VectorXd target = Eigen::VectorXd::Constant(model.nq, 1.0);  // beyond the limits at 0.4
-    target[1] = -1.0;
-    sim.set_drive_target(0, target, Eigen::VectorXd::Zero(model.nv));
-    const Residual r = step_and_compare(sim, 500);
-    const AppliedTorque last = sim.applied_torque(0);
+    const auto [r, last] = drive_and_compare(model, dofs, precision, target, 500, armature);
     EXPECT_GT(last.limits.cwiseAbs().maxCoeff(), 1.0) << "the limits hold the drives";
     std::cout << "[joint forces] ur5 on its limits, " << precision_name(precision) << ": worst " << r.worst
+              << " N m of " << r.largest << "\n";
+    EXPECT_LE(r.worst, identity_tolerance(precision) * r.largest) << precision_name(precision);
+  }
+}
+
+// panda's fingers driven apart against their mimic row: its impulse acts
+// on both fingers (J^T lambda, with the limits in applied_torque) and is in
+// their joint forces.
+TEST(JointForces, AlongTheirAxesTheyAreTheAppliedTorqueWithAMimicJoint) {
+  const Model model = load_shared_model("panda", false);
+  const int f1 = model.dof_index("panda_finger_joint1"), f2 = model.dof_index("panda_finger_joint2");
+  std::vector<DofSettings> dofs = default_dof_settings(model);
+  for (DofSettings& d : dofs) d.drive_stiffness = 200, d.drive_damping = 10;
+  Eigen::VectorXd target = Eigen::VectorXd::Zero(model.nq);
+  target[f1] = 0.01;
+  target[f2] = 0.03;
+  for (Precision precision : {Precision::Float, Precision::Double}) {
+    const auto [r, last] = drive_and_compare(model, dofs, precision, target, 300);
+    EXPECT_GT(std::abs(last.limits[f1]), 0.5) << "the mimic row holds the drives apart";
+    EXPECT_NEAR(last.limits[f2], -last.limits[f1], 1e-6 * std::abs(last.limits[f1])) << "J = e_2 - e_1";
+    std::cout << "[joint forces] panda's mimic fingers, " << precision_name(precision) << ": worst " << r.worst
               << " N m of " << r.largest << "\n";
     EXPECT_LE(r.worst, identity_tolerance(precision) * r.largest) << precision_name(precision);
   }

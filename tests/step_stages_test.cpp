@@ -54,11 +54,15 @@ std::vector<DofSettings> scene_dofs(const Model& model, Stage unused) {
 }
 
 // anymal_b floating with link damping on every body but the base (its
-// legs' linear 0.3 and angular 0.6 per second), unless `unused` is it.
+// legs' linear 0.3 and angular 0.6 per second) and the right hind knee
+// mimicking the left front one (multiplier -1, offset 0.1), unless
+// `unused` is the stage.
 Model scene_model(Stage unused) {
   Model model = test::load_shared_model("anymal_b", true);
   if (unused != Stage::LinkDamping)
     for (int b = 1; b < model.nbody; ++b) model.body_linear_damping[b] = 0.3, model.body_angular_damping[b] = 0.6;
+  if (unused != Stage::MimicJoints)
+    model.mimics.push_back({model.dof_index("RH_KFE"), model.dof_index("LF_KFE"), -1.0, 0.1});
   return model;
 }
 

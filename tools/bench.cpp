@@ -489,6 +489,9 @@ std::optional<std::string> mujoco_difference(const Scene& scene) {
            "), whose motor operating regions the MuJoCo peer does not model";
   if (scene.model.damped_bodies() > 0)
     return "the scene has link damping, which MuJoCo (joint damping only) does not model";
+  if (!scene.model.mimics.empty())
+    return "the scene has mimic joints (" + scene.model.dof_name[scene.model.mimics.front().dof] +
+           "), which the MuJoCo peer does not couple";
   std::optional<std::pair<double, double>> gains;
   for (int k = 0; k < scene.model.nv; ++k) {
     if (scene.model.body_joint[scene.model.dof_body[k]] == JointType::Free) continue;
