@@ -106,7 +106,8 @@ std::string resolve_mesh(const std::string& ref, const fs::path& base) {
     const std::size_t slash = rest.find('/');
     const std::string pkg = rest.substr(0, slash);
     const std::string inner = slash == std::string::npos ? "" : rest.substr(slash + 1);
-    for (fs::path d = fs::absolute(base, ec);; d = d.parent_path()) {
+    // a bare file name's base is empty, which fs::absolute refuses: the current folder
+    for (fs::path d = fs::absolute(base.empty() ? fs::path(".") : base, ec);; d = d.parent_path()) {
       for (const fs::path& candidate : {d / pkg / inner, d.filename() == pkg ? d / inner : fs::path()})
         if (!candidate.empty() && fs::is_regular_file(candidate, ec)) return candidate.lexically_normal().string();
       if (d == d.parent_path()) break;
@@ -398,7 +399,11 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
   doc.Print(&printer);
   std::string urdfdom_errors;
   const urdf::ModelInterfaceSharedPtr model = parse_with_urdfdom(printer.CStr(), urdfdom_errors);
-  if (!model) throw ModelError(src + ": invalid URDF: " + (urdfdom_errors.empty() ? "rejected by urdfdom" : urdfdom_errors));
+  // urdfdom may log an error and still return a model, with the part it
+  // could not read left at zero (an <inertial> whose <mass> it cannot
+  // parse, an <inertia> without its products): refused all the same
+  if (!model || !urdfdom_errors.empty())
+    throw ModelError(src + ": invalid URDF: " + (urdfdom_errors.empty() ? "rejected by urdfdom" : urdfdom_errors));
 
   const std::map<std::string, bool> gravity = gravity_switches(src, robot, links);
   ArticulationSpec spec;

@@ -280,6 +280,13 @@ TEST(UrdfImport, CollisionPrimitivesAndMeshes) {
   EXPECT_NE(warnings[1].find("near.stl' fitted with a box"), std::string::npos) << warnings[1];
   EXPECT_NE(warnings[2].find("link 'base'"), std::string::npos);
   EXPECT_NE(warnings[2].find("missing.stl"), std::string::npos);
+  // the file by its bare name from its own folder: package:// searched up from there
+  const fs::path cwd = fs::current_path();
+  fs::current_path(dir / "urdf");
+  const ArticulationSpec bare = urdf_articulation_from_file("robot.urdf");
+  fs::current_path(cwd);
+  ASSERT_EQ(bare.links[0].shapes.size(), 6u);
+  EXPECT_TRUE(fs::equivalent(bare.links[0].shapes[4].mesh_path, dir / "meshes" / "part.stl"));
   fs::remove_all(dir.parent_path());
 }
 
@@ -422,6 +429,21 @@ TEST(UrdfImportError, UrdfdomReasonIsKeptAndNotPrinted) {
   EXPECT_MODEL_ERROR(parse(xml), "test.urdf", "limit");
   const std::string printed = testing::internal::GetCapturedStderr() + testing::internal::GetCapturedStdout();
   EXPECT_EQ(printed, "");
+}
+
+// urdfdom logs these and still returns a model, the inertial read as
+// zero: refused with its reason, not loaded massless.
+TEST(UrdfImportError, AnInertialUrdfdomCannotReadIsRefused) {
+  const std::string products = R"(ixy="0" ixz="0" iyz="0")";
+  for (const auto& [inertial, reason] : std::vector<std::pair<std::string, std::string>>{
+           {R"(<mass value="3 "/><inertia ixx="1" iyy="1" izz="1" )" + products + "/>", "mass [3 ] is not a float"},
+           {R"(<mass value="3"/><inertia ixx="1" iyy="1" izz="1"/>)", "inertia"},
+           {R"(<inertia ixx="1" iyy="1" izz="1" )" + products + "/>", "mass"}}) {
+    const std::string xml = chain(R"(<axis xyz="0 1 0"/>)", std::string("<inertial>") + inertial + "</inertial>");
+    testing::internal::CaptureStderr();
+    EXPECT_MODEL_ERROR(parse(xml), "test.urdf: invalid URDF: ", reason.c_str());
+    EXPECT_EQ(testing::internal::GetCapturedStderr(), "") << inertial;
+  }
 }
 
 TEST(UrdfImportError, BuilderRejectionNamesFile) {
