@@ -239,6 +239,15 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
   require(!o.conserve_linear_momentum || o.integrator == Integrator::SemiImplicitEuler,
           "StepOptions::conserve_linear_momentum needs the semi-implicit Euler integrator");
   validate_link_damping(model, o);
+  // every copy starts with these: beyond the precision's range each would fault
+  require(!o.contacts.ground || finite_in(o.precision, o.contacts.ground_height), [&] {
+    return "ContactSettings::ground_height must be " + finite_word(o.precision) + ", got " +
+           number_text(o.contacts.ground_height);
+  });
+  require(all_finite_in(o.precision, model.gravity), [&] {
+    return "Model::gravity must be " + finite_word(o.precision) + ", got (" + number_text(model.gravity.x()) + ", " +
+           number_text(model.gravity.y()) + ", " + number_text(model.gravity.z()) + ")";
+  });
   require(static_cast<int>(dofs.size()) == model.nv, "Simulator: " + std::to_string(dofs.size()) +
                                                          " DOF settings for a model with " + std::to_string(model.nv) +
                                                          " DOFs");

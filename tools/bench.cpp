@@ -205,22 +205,26 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   const Model& model = scene.model;
   StepOptions options = scene.env.step;
   options.precision = precision;
-  Simulator sim = build_from_scene(scene, [&] { return Simulator(model, config.copies, options, scene.env.dofs); });
   const step_scene::CopyPoses poses = step_scene::copy_poses(model, scene.env.dofs, scene.env.drive_target_q,
                                                              scene.env.initial_q, config.copies, config.spread);
   const Eigen::VectorXd v0 = Eigen::VectorXd::Zero(model.nv);
-  auto reset = [&] {
+  auto reset = [&](Simulator& sim) {
     for (int c = 0; c < config.copies; ++c) sim.set_state(c, poses.q0_of(c), v0);
   };
-  for (int c = 0; c < config.copies; ++c) sim.set_drive_target(c, poses.target_of(c), v0);
-  reset();
+  // the poses and targets are the scene's: the simulator's checks of them are the scene's errors
+  Simulator sim = build_from_scene(scene, [&] {
+    Simulator built(model, config.copies, options, scene.env.dofs);
+    for (int c = 0; c < config.copies; ++c) built.set_drive_target(c, poses.target_of(c), v0);
+    reset(built);
+    return built;
+  });
   if (plan.empty()) plan = sim.describe_plan();
   for (int threads : config.threads) {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
     sim.step(config.steps);
     std::vector<double> seconds;
     for (int r = 0; r < config.repeats; ++r) {
-      reset();
+      reset(sim);
       const auto start = std::chrono::steady_clock::now();
       sim.step(config.steps);
       seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
@@ -236,7 +240,7 @@ PrecisionResult time_lockstep(const Scene& scene, const BenchConfig& config, Pre
   {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism,
                                     static_cast<std::size_t>(config.threads.front()));
-    reset();
+    reset(sim);
     sim.set_profiling(true);
     sim.step(config.steps);
     result.profile = sim.profile();

@@ -190,8 +190,12 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
                  "running %d\n", config.threads, usable, threads);
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
 
-  VecEnv env = build_from_scene(scene, [&] { return VecEnv(scene.model, config.envs, scene.env); });
-  env.reset();
+  // the first reset sets the initial state and draws, which the simulator checks too
+  VecEnv env = build_from_scene(scene, [&] {
+    VecEnv built(scene.model, config.envs, scene.env);
+    built.reset();
+    return built;
+  });
   for (const std::string& warning : env.simulator().warnings())
     std::fprintf(stderr, "lockstep rollout: warning: %s\n", warning.c_str());
   RolloutInfo info{scene_to_json(scene), scene.model_path, policy_name(config.policy), {}};
