@@ -1197,24 +1197,36 @@ void Simulator::all_link_accelerations(Eigen::Ref<RowMatrix> out) const {
   write_rows(m.frames, m.recorded, out);
 }
 
-void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction) {
-  check_copy(copy, "set_ground");
-  require(options_.contacts.ground, "set_ground: the scene has no ground (ContactSettings::ground)");
+// set_ground's and set_ground_friction's checks of the copy and the
+// scene, and of the friction; messages built only on failure (a reset
+// calls these, and allocates nothing).
+void Simulator::check_ground(int copy, const char* what, double friction) const {
+  check_copy(copy, what);
+  require(options_.contacts.ground, [&] { return std::string(what) + ": the scene has no ground (ContactSettings::ground)"; });
   require(contacts_run(), [&] {
-    return "set_ground: the scene's contacts do not run (" + plan_[static_cast<int>(Stage::Contacts)].reason +
-           "), so it keeps no ground per copy";
+    return std::string(what) + ": the scene's contacts do not run (" +
+           plan_[static_cast<int>(Stage::Contacts)].reason + "), so it keeps no ground per copy";
   });
   const Precision p = options_.precision;
-  // messages built only on failure: a reset calls this, and allocates nothing
+  require(finite_in(p, friction) && friction >= 0,
+          [&] { return std::string(what) + ": friction must be " + finite_word(p) + " and >= 0"; });
+}
+
+void Simulator::set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction) {
+  check_ground(copy, "set_ground", friction);
+  const Precision p = options_.precision;
   require(finite_in(p, height), [&] { return "set_ground: height must be " + finite_word(p); });
   require(all_finite_in(p, normal) && normal.norm() > 1e-9,
           [&] { return "set_ground: normal must be a " + finite_word(p) + " non-zero vector"; });
-  require(finite_in(p, friction) && friction >= 0,
-          [&] { return "set_ground: friction must be " + finite_word(p) + " and >= 0"; });
   visit([&](auto& b) {
     b.ground.set(copy, ground_plane(normal, height));
     b.ground_friction.fill(copy, friction);
   });
+}
+
+void Simulator::set_ground_friction(int copy, double friction) {
+  check_ground(copy, "set_ground_friction", friction);
+  visit([&](auto& b) { b.ground_friction.fill(copy, friction); });
 }
 
 template <class F>

@@ -328,11 +328,12 @@ class Simulator {
 
   // Contacts. The candidate shape pairs after filtering (and notes on
   // shapes left out); the ground of one copy (plane through (0, 0, height)
-  // with the unit normal, and its friction); the contacts of the last step
+  // with the unit normal, and its friction; or its friction alone); the contacts of the last step
   // and their total wrench on each body ([force; torque about the world
   // origin], world axes, one column per body).
   const ContactPairs& contact_pairs() const { return pairs_; }
   void set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction);
+  void set_ground_friction(int copy, double friction);
   std::vector<Contact> contacts(int copy) const;
   Eigen::Matrix<double, 6, Eigen::Dynamic> body_contact_wrenches(int copy) const;
   // The force part of body_contact_wrenches into forces[3 nbody]; allocates nothing.
@@ -370,6 +371,7 @@ class Simulator {
   void refresh_plan() const;  // plan_ and the engine's plan, where stale
   bool contacts_run() const;
   bool contacts_found() const;  // the contacts stage runs and some shape pair may touch
+  void check_ground(int copy, const char* what, double friction) const;
   std::string unenforced_mimics() const;
   StepPlan step_plan() const;
   std::string rows_summary() const;

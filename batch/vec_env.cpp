@@ -27,6 +27,14 @@ VecEnvOptions checked(const Model& model, VecEnvOptions o) {
                                               std::to_string(o.initial_q.size()));
   require(o.initial_v.size() == model.nv, "VecEnv: initial_v expects " + std::to_string(model.nv) + " values, got " +
                                               std::to_string(o.initial_v.size()));
+  for (const auto& entry : {std::pair{&o.initial_q, "initial_q"}, std::pair{&o.initial_v, "initial_v"}}) {
+    const Eigen::VectorXd& values = *entry.first;
+    for (Eigen::Index i = 0; i < values.size(); ++i)
+      require(std::isfinite(values[i]), [&] {
+        return std::string("VecEnv: ") + entry.second + " must be finite, entry " + std::to_string(i) + " is " +
+               number_text(values[i]);
+      });
+  }
   require(o.drive_target_q.size() == model.nq, "VecEnv: drive_target_q expects " + std::to_string(model.nq) +
                                                    " values, got " + std::to_string(o.drive_target_q.size()));
   require(o.drive_target_q.allFinite(), "VecEnv: drive_target_q must be finite");
@@ -112,7 +120,6 @@ void VecEnv::reset() {
   std::vector<int> all(copies());
   for (int c = 0; c < copies(); ++c) all[c] = c;
   restart(all);
-  ready_ = true;
 }
 
 void VecEnv::reset(const std::vector<int>& which) {
@@ -133,6 +140,8 @@ void VecEnv::reset_masked(const std::vector<std::uint8_t>& mask) {
 void VecEnv::restart(const std::vector<int>& which) {
   for (int c : which) last_fault_[c] = Fault::None;
   reset_copies(which);
+  // steps once every copy has had a reset, whichever form gave it
+  ready_ = ready_ || std::all_of(reset_count_.begin(), reset_count_.end(), [](std::uint32_t n) { return n > 0; });
 }
 
 void VecEnv::reset_copies(const std::vector<int>& which) {
@@ -160,9 +169,11 @@ void VecEnv::randomize(int c, std::uint32_t reset) {
   }
   const ContactSettings& contact = options_.step.contacts;
   // without contacts running (forced off, or no shape pairs) there is no
-  // ground to give a friction; the other draws do not depend on this one
+  // ground to give a friction; the other draws do not depend on this one.
+  // The copy's ground keeps its height and normal (set_ground's, say a
+  // terrain per copy).
   if (r.randomize_ground_friction && contact.ground && contacts_)
-    sim_.set_ground(c, contact.ground_height, contact.ground_normal, value(&Randomization::ground_friction, 0));
+    sim_.set_ground_friction(c, value(&Randomization::ground_friction, 0));
 
   // the draws go into vectors kept from reset to reset: a reset allocates nothing
   ResetScratch& scratch = reset_scratch_;
@@ -317,7 +328,7 @@ Eigen::VectorXd VecEnv::position_action(const Eigen::VectorXd& q) const {
 }
 
 void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
-  if (!ready_) throw std::logic_error("VecEnv::step: call reset() first");
+  if (!ready_) throw std::logic_error("VecEnv::step: reset every copy first (reset())");
   if (actions.rows() != copies() || actions.cols() != action_size())
     throw std::invalid_argument("VecEnv::step: actions must be " + std::to_string(copies()) + " x " +
                                 std::to_string(action_size()) + ", got " + std::to_string(actions.rows()) + " x " +
@@ -326,8 +337,10 @@ void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
   sim_.step(options_.control_steps);
   observe(nullptr, observations_);
 
-  reward_out_.setZero();
-  std::fill(terminated_.begin(), terminated_.end(), 0);
+  // sized anew: a reward function that resized them (refused below) leaves
+  // the next step sound
+  reward_out_.setZero(copies());
+  terminated_.assign(copies(), 0);
   if (reward_) {
     reward_actions_ = actions;
     reward_(observations_, reward_actions_, reward_out_, terminated_);

@@ -113,8 +113,9 @@ struct EnvCopyState {
 
 class VecEnv {
  public:
-  // Throws std::invalid_argument naming the option that is wrong. Call
-  // reset() before the first step(). Keeps a reference to the model, which
+  // Throws std::invalid_argument naming the option that is wrong. Reset
+  // every copy before the first step() (reset(), or the other forms
+  // covering them all). Keeps a reference to the model, which
   // must outlive it (a temporary does not compile).
   VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuild caller = {});  // caller: leave it defaulted
   VecEnv(Model&&, int, VecEnvOptions, HeaderBuild = {}) = delete;

@@ -389,6 +389,70 @@ TEST(VecEnv, TheRewardFunctionSetsRewardsAndTerminations) {
   EXPECT_EQ(env.episode_step()[0], 1);
 }
 
+// A reward function that resizes its outputs is refused, and the next
+// step, with a sound one or none, works.
+TEST(VecEnv, AStepAfterARewardFunctionThatResizedItsOutputsWorks) {
+  VecEnv env(anymal(), 4, standing_options(anymal()));
+  env.set_reward([](const Observations&, const RowMatrix&, Eigen::VectorXd& reward,
+                    std::vector<std::uint8_t>& terminated) {
+    reward.resize(0);
+    terminated.clear();
+    terminated.shrink_to_fit();
+  });
+  env.reset();
+  EXPECT_THROW_WITH(env.step(wave_actions(env, iota(4), 0)), std::logic_error, "resized its outputs");
+  env.set_reward([](const Observations&, const RowMatrix&, Eigen::VectorXd& reward,
+                    std::vector<std::uint8_t>& terminated) {
+    ASSERT_EQ(reward.size(), 4);
+    ASSERT_EQ(terminated.size(), 4u);
+    reward.setConstant(2.0);
+  });
+  env.step(wave_actions(env, iota(4), 1));
+  EXPECT_TRUE((env.reward().array() == 2.0).all());
+  env.set_reward(nullptr);
+  env.step(wave_actions(env, iota(4), 2));
+  EXPECT_TRUE((env.reward().array() == 0.0).all());
+  EXPECT_EQ(env.terminated(), std::vector<std::uint8_t>(4, 0));
+}
+
+// Every copy reset by reset(indices) or reset_masked is ready to step as
+// after reset(); some copies only are not.
+TEST(VecEnv, ResettingEveryCopyByIndexOrMaskAllowsStepping) {
+  VecEnv by_index(anymal(), 3, standing_options(anymal())), by_mask(anymal(), 3, standing_options(anymal()));
+  by_index.reset(std::vector<int>{0, 2});
+  EXPECT_THROW_WITH(by_index.step(wave_actions(by_index, iota(3), 0)), std::logic_error, "reset every copy first");
+  by_index.reset(std::vector<int>{1});
+  by_index.step(wave_actions(by_index, iota(3), 0));
+  by_mask.reset_masked({1, 1, 1});
+  by_mask.step(wave_actions(by_mask, iota(3), 0));
+  for (int c = 0; c < 3; ++c) EXPECT_TRUE(test::same_state(by_index.simulator(), c, by_mask.simulator(), c));
+}
+
+// A ground set per copy (a terrain) keeps its height and normal through
+// resets; with randomize_ground_friction a reset draws its friction only.
+TEST(VecEnv, AResetKeepsACopysOwnGroundAndDrawsItsFriction) {
+  VecEnvOptions options = standing_options(anymal());
+  VecEnv env(anymal(), 2, options);
+  env.reset();
+  const Eigen::Vector3d tilted = Eigen::Vector3d(0.1, 0, 1).normalized();
+  env.simulator().set_ground(1, -0.2, tilted, 0.1);
+  const Eigen::VectorXf plane = env.simulator().batch<float>().ground.get(1).cast<float>();
+  env.reset(std::vector<int>{1});
+  EXPECT_EQ(env.simulator().batch<float>().ground.get(1).cast<float>(), plane);
+  const float friction = env.simulator().batch<float>().ground_friction.at(1, 0);
+  EXPECT_NE(friction, 0.1f);
+  EXPECT_GE(friction, 0.4f);
+  EXPECT_LE(friction, 1.2f);
+  options.randomization.randomize_ground_friction = false;
+  VecEnv kept(anymal(), 2, options);
+  kept.reset();
+  kept.simulator().set_ground(0, -0.2, tilted, 0.1);
+  kept.reset(std::vector<int>{0});
+  EXPECT_EQ(kept.simulator().batch<float>().ground_friction.at(0, 0), 0.1f);
+  EXPECT_THROW_WITH(kept.simulator().set_ground_friction(0, -1.0), std::invalid_argument,
+                    "set_ground_friction: friction must be finite");
+}
+
 // A non-finite action faults its copy only: the others step as without it,
 // and the faulted copy is reported, terminated and restarted.
 TEST(VecEnv, AFaultedCopyIsIsolatedReportedAndReset) {
@@ -555,6 +619,13 @@ TEST(VecEnv, RejectsBadUseWithClearErrors) {
   bad = options;
   bad.initial_q = Eigen::VectorXd::Zero(3);
   EXPECT_THROW(VecEnv(anymal(), 2, bad), std::invalid_argument);
+  for (const char* which : {"initial_q", "initial_v"}) {  // named, with the entry, not at reset
+    bad = options;
+    bad.initial_v = Eigen::VectorXd::Zero(anymal().nv);
+    (std::string(which) == "initial_q" ? bad.initial_q : bad.initial_v)[4] = std::nan("");
+    EXPECT_THROW_WITH(VecEnv(anymal(), 2, bad), std::invalid_argument,
+                      std::string("VecEnv: ") + which + " must be finite, entry 4 is nan");
+  }
   bad = options;
   bad.randomization.mass_scale = {1.2, 0.8};
   EXPECT_THROW(VecEnv(anymal(), 2, bad), std::invalid_argument);
