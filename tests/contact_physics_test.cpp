@@ -142,6 +142,38 @@ TEST_P(ContactPrecision, BoxOnInclineSticksOrSlides) {
   }
 }
 
+// Coulomb's cone is isotropic: the box slides down a 35 degree incline
+// whose downhill runs at 45 degrees between world x and y (off the
+// contact tangents' axes), turned about the incline's normal by yaw, as
+// far as along an axis (g (sin - mu cos), within 2 % as above), straight
+// down (sideways less than 1 % of the travel) and without spinning (below
+// 0.01 rad/s). A step per tangent row took it up to 15 % too far, turning
+// at up to 1.15 rad/s: its fixed point opposed (v_a / D_aa, v_b / D_bb),
+// not the slip.
+TEST_P(ContactPrecision, BoxSlidesStraightDownAnInclineTurnedOffTheAxes) {
+  const double mu = 0.3, half = 0.1, g = 9.81;
+  const Incline incline(35 * kPi / 180);
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(kPi / 4, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Vector3d normal = turn * incline.normal, downhill = turn * incline.downhill;
+  const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(half), 1.0);
+  for (double yaw : {0.0, 0.3, 0.55, kPi / 4}) {
+    StepOptions o = options();
+    o.contacts.ground_normal = normal;
+    o.contacts.ground_contact.friction = mu;
+    o.contacts.shapes = {ShapeContact{mu, 0.0}};
+    Simulator sim(model, 1, o);
+    const Eigen::Vector3d start = half * normal;
+    const Eigen::Quaterniond pose(Eigen::AngleAxisd(yaw, normal) * Eigen::Quaterniond(turn) * incline.tilt);
+    sim.set_state(0, free_pose(start, pose), Eigen::VectorXd::Zero(6));
+    sim.step(500);
+    const Eigen::Vector3d moved = sim.q(0).head<3>() - start;
+    const double travelled = moved.dot(downhill), expected = incline.sliding(mu, g);
+    EXPECT_NEAR(2 * travelled, expected, 0.02 * expected) << "yaw " << yaw;
+    EXPECT_LT((moved - travelled * downhill).norm(), 0.01 * travelled) << "yaw " << yaw << ": sideways";
+    EXPECT_LT(sim.v(0).tail<3>().norm(), 0.01) << "yaw " << yaw << ": spin";
+  }
+}
+
 // A 1 kg ball of radius 0.1 m dropped from 1 m onto the ground, ball and
 // ground of restitution e: the greatest height of each of its first
 // `count` flights after a bounce (within 20 s).
