@@ -131,14 +131,17 @@ struct AppliedTorque {
   Eigen::VectorXd actuators; // the actuators' torques on the joints (strength x G tau_m, strength x r_c tau_m)
 };
 
-// One contact point of a copy after a step (Simulator::contacts).
+// One contact point of a copy after a step (Simulator::contacts). With
+// substeps, a point of the step's last pipeline run, its force that run's
+// impulse over its dt / substeps: a sample of the step, not its mean (an
+// impact in an earlier run is not in it).
 struct Contact {
   int shape_a = kGroundShape, shape_b = kGroundShape;  // Model::shapes index, kGroundShape or static_box_shape(i)
   int body_a = -1, body_b = -1;     // moving bodies; -1: the world
   Eigen::Vector3d point = Eigen::Vector3d::Zero();   // world, at the start of the step
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(); // world, from A to B
   double separation = 0;            // m, negative: penetration
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();   // on B at the point, world [N]: the step's impulse / dt
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();   // on B at the point, world [N]: the (last run's) impulse / its dt
   double torsion = 0;               // on B about the normal [N m] (torsional friction)
 };
 
