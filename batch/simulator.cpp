@@ -32,7 +32,7 @@ std::size_t StepBatch<T>::bytes_per_copy() const {
                                  &initial_q, &initial_v, &fault, &applied_drive, &applied_passive, &applied_friction,
                                  &applied_limits, &ground, &ground_friction, &contact_id, &contact_impulse,
                                  &contact_point, &contact_normal, &contact_separation, &contact_count,
-                                 &contact_dropped, &contact_overflow_steps, &momentum_remainder, &motion_q, &motion_v,
+                                 &contact_dropped, &contact_overflow_steps, &contact_wrench, &momentum_remainder, &motion_q, &motion_v,
                                  &motion_acceleration, &motion_unbalanced, &motion_recorded, &applied_actuation,
                                  &actuator_command, &actuator_state, &actuator_strength})
     values += static_cast<std::size_t>(a->size());
@@ -740,6 +740,7 @@ CopySnapshot Simulator::snapshot(int copy) const {
                         b.momentum_remainder.get(copy),
                         pack(copy_parameters(b), copy),
                         pack(contact_report(b), copy),
+                        b.contact_wrench.get(copy),
                         pack(applied_torque_report(b), copy),
                         pack(recorded_motion(b), copy),
                         scene_key_};
@@ -778,6 +779,9 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     // none to carry where either side steps without the momentum projection
     if (s.momentum_remainder.size() == b.momentum_remainder.size()) b.momentum_remainder.set(copy, s.momentum_remainder);
     else b.momentum_remainder.fill(copy, 0);
+    // a snapshot of one run per step has only its points: their wrench is the next step's
+    if (s.contact_wrench.size() == b.contact_wrench.size()) b.contact_wrench.set(copy, s.contact_wrench);
+    else b.contact_wrench.fill(copy, 0);
   });
   note_copy_inputs(copy);
   // the restored copy may carry parameters of its own, or the scene's again
@@ -1046,6 +1050,7 @@ void Simulator::reset(int copy) {
     for (auto* a : {&b.contact_count, &b.contact_dropped, &b.contact_overflow_steps})
       if (a->size() > 0) a->at(copy, 0) = 0;
     for (auto* a : applied_torque_report(b)) a->fill(copy, 0);  // no step since
+    b.contact_wrench.fill(copy, 0);
     b.actuator_state.fill(copy, 0);
     b.fault.at(copy, 0) = 0;
   });
@@ -1279,9 +1284,27 @@ std::vector<Contact> Simulator::contacts(int copy) const {
   return out;
 }
 
+// With substeps, the step's summed impulse wrench of body b over dt
+// (StepBatch::contact_wrench), entry i of 6; false without them.
+template <class F>
+bool Simulator::visit_step_contact_wrenches(int copy, F&& f) const {
+  if (!contacts_found()) return false;
+  return visit([&](auto& b) {
+    if (b.contact_wrench.size() == 0) return false;
+    const double inv_dt = 1.0 / options_.dt;
+    for (int body = 0; body < model_->nbody; ++body)
+      for (int i = 0; i < 6; ++i) f(body, i, inv_dt * static_cast<double>(b.contact_wrench.at(copy, 6 * body + i)));
+    return true;
+  });
+}
+
 void Simulator::body_contact_forces(int copy, double* forces) const {
   check_copy(copy, "body_contact_forces");
   std::fill(forces, forces + 3 * model_->nbody, 0.0);
+  if (visit_step_contact_wrenches(copy, [&](int body, int i, double x) {
+        if (i < 3) forces[3 * body + i] = x;
+      }))
+    return;
   visit_body_contacts(copy, [&](const Contact& c, int body, double sign) {
     for (int i = 0; i < 3; ++i) forces[3 * body + i] += sign * c.force[i];
   });
@@ -1290,6 +1313,7 @@ void Simulator::body_contact_forces(int copy, double* forces) const {
 Eigen::Matrix<double, 6, Eigen::Dynamic> Simulator::body_contact_wrenches(int copy) const {
   check_copy(copy, "body_contact_wrenches");
   Eigen::Matrix<double, 6, Eigen::Dynamic> out = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, model_->nbody);
+  if (visit_step_contact_wrenches(copy, [&](int body, int i, double x) { out(i, body) = x; })) return out;
   visit_body_contacts(copy, [&](const Contact& c, int body, double sign) {
     const Eigen::Vector3d torque = c.point.cross(c.force) + c.torsion * c.normal;
     out.col(body) += sign * (Eigen::Matrix<double, 6, 1>() << c.force, torque).finished();

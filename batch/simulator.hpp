@@ -113,6 +113,12 @@ struct StepBatch {
   BatchArray<T> ground, ground_friction;
   BatchArray<T> contact_id, contact_impulse, contact_point, contact_normal, contact_separation;
   BatchArray<T> contact_count, contact_dropped, contact_overflow_steps;
+  // With substeps > 1 and contacts, per body (6 each): the contacts'
+  // impulse on it summed over the step's pipeline runs, [linear; angular
+  // about the world origin], world axes [N s, N m s]: what the per-body
+  // contact forces report over dt. Empty otherwise (the last run's points
+  // are then the step's).
+  BatchArray<T> contact_wrench;
   // With StepOptions::conserve_linear_momentum, per floating articulation
   // (world axes, 3 each): the momentum the last step's correction could not
   // place on its base's rounded velocity, which the next step adds
@@ -133,8 +139,8 @@ struct AppliedTorque {
 
 // One contact point of a copy after a step (Simulator::contacts). With
 // substeps, a point of the step's last pipeline run, its force that run's
-// impulse over its dt / substeps: a sample of the step, not its mean (an
-// impact in an earlier run is not in it).
+// impulse over its dt / substeps: a sample of the step, not its mean
+// (body_contact_wrenches sums the runs).
 struct Contact {
   int shape_a = kGroundShape, shape_b = kGroundShape;  // Model::shapes index, kGroundShape or static_box_shape(i)
   int body_a = -1, body_b = -1;     // moving bodies; -1: the world
@@ -161,6 +167,8 @@ struct Contact {
 // included.
 struct CopySnapshot {
   Eigen::VectorXd q, v, joint_impulse, contact_id, contact_impulse, momentum_remainder, parameters, contact_report;
+  // StepBatch::contact_wrench (empty without it; restored where both have it, else zero)
+  Eigen::VectorXd contact_wrench;
   // applied_torque()'s five sources of the last step (empty without
   // StepOptions::record_applied_torque)
   Eigen::VectorXd applied_torque;
@@ -338,6 +346,8 @@ class Simulator {
   void set_ground(int copy, double height, const Eigen::Vector3d& normal, double friction);
   void set_ground_friction(int copy, double friction);
   std::vector<Contact> contacts(int copy) const;
+  // With substeps, the step's wrench: its runs' impulses over dt (where
+  // contacts() holds the last run's points).
   Eigen::Matrix<double, 6, Eigen::Dynamic> body_contact_wrenches(int copy) const;
   // The force part of body_contact_wrenches into forces[3 nbody]; allocates nothing.
   void body_contact_forces(int copy, double* forces) const;
@@ -436,6 +446,11 @@ class Simulator {
   // step acts on: sign 1 on B (Contact::force acts on it), -1 on A.
   template <class F>
   void visit_body_contacts(int copy, F&& f) const;
+  // f(body, i, x) for entry i of each body's contact wrench of the step
+  // (StepBatch::contact_wrench over dt), and true; false, calling nothing,
+  // without one (one run per step: visit_body_contacts holds the step).
+  template <class F>
+  bool visit_step_contact_wrenches(int copy, F&& f) const;
 
   HeaderBuildCheck header_check_;  // first: runs before any other member is built
   const Model* model_;

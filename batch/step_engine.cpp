@@ -244,6 +244,9 @@ int StepEngine<L>::set_up_contacts(int copies, const ContactSettings& settings, 
       if (moves[j]) spec.dofs.push_back(j);
     most = std::max(most, spec.candidates);
     contact_pairs_.push_back(spec);
+    for (int body : {pair.a.body, pair.b.body})
+      if (body >= 0 && std::find(contact_bodies_.begin(), contact_bodies_.end(), body) == contact_bodies_.end())
+        contact_bodies_.push_back(body);
   }
   ContactParams<T>& p = contact_params_;
   p.capacity = settings.capacity;
@@ -278,6 +281,7 @@ void StepEngine<L>::make_contact_arrays(int copies, int capacity, int rows_per_c
   B.contact_count = BatchArray<T>(copies, 1, kWidth);
   B.contact_dropped = BatchArray<T>(copies, 1, kWidth);
   B.contact_overflow_steps = BatchArray<T>(copies, 1, kWidth);
+  B.contact_wrench = BatchArray<T>(copies, options_.substeps > 1 && C > 0 ? 6 * km_.nbody : 0, kWidth);
 }
 
 template <class L>
@@ -494,9 +498,15 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
   if (options_.integrator != Integrator::RK4) {
     if (s.solving) finish_rows(block, h, s);
     if (!floating_roots_.empty()) linear_momentum_target(block, h, s);
-    if (!contact_pairs_.empty())
-      store_contacts<L>(s.contacts, s.rows.rows.lambda.data() + row_specs_.size(), s.rows_at_rest,
-                        contact_arrays(block), first_run);
+    if (!contact_pairs_.empty()) {
+      const L* impulses = s.rows.rows.lambda.data() + row_specs_.size();
+      store_contacts<L>(s.contacts, impulses, s.rows_at_rest, contact_arrays(block), first_run);
+      if (B.contact_wrench.size() > 0) {  // the step's sum over its runs
+        T* sum = B.contact_wrench.block(block);
+        if (first_run) std::fill_n(sum, B.contact_wrench.size() * W, T(0));
+        add_contact_wrenches<L>(s.contacts, impulses, s.rows_at_rest, contact_bodies_, sum);
+      }
+    }
     s.clock.lap(&StepProfile::constraint_solve);
     if (options_.record_motion) record_motion(block, h, s);
     T* velocity = fields(s.qacc);  // free again: the position velocity

@@ -225,6 +225,7 @@ class StepEngine final : public Simulator::Engine {
   int mimic_rows_ = 0;  // the first rows of row_specs_: mimic couplings
   JointRowColumns columns_;  // the DOFs joint rows act on
   std::vector<ContactPairSpec<T>> contact_pairs_;  // empty unless plan.contacts
+  std::vector<int> contact_bodies_;  // the moving bodies of contact_pairs_
   // With conserve_linear_momentum: the floating articulations' root bodies,
   // and per body the root whose momentum it counts in (-1: none)
   std::vector<int> floating_roots_;

@@ -62,8 +62,8 @@ struct ContactScratch {
   std::vector<ContactCandidate<L>> candidates;  // of one pair
   std::vector<L> linear_speed, angular_speed;   // (nbody) |v| of the body origin and |w|, free motion
   std::vector<L> candidate_J;                   // (k x nv) rows of one point
-  // per slot
-  std::vector<L> id, separation, mu, restitution;
+  // per slot; body_a and body_b: the point's pair's bodies (-1: the world)
+  std::vector<L> id, separation, mu, restitution, body_a, body_b;
   std::vector<Vec3<L>> point, normal;
   std::vector<unsigned char> moves;  // (capacity x nv) 1: the DOF moves a body of some lane's point in the slot
   std::vector<int> support;          // (capacity x nv) those DOFs, ascending (closed under dof_parent)
@@ -82,7 +82,8 @@ struct ContactScratch {
 
   ContactScratch(int capacity_, int k_, int nv_, int nbody, int max_candidates)
       : capacity(capacity_), k(k_), nv(nv_), count(T(0)), candidates(max_candidates), candidate_J(k_ * nv_),
-        id(capacity_), separation(capacity_), mu(capacity_), restitution(capacity_), point(capacity_),
+        id(capacity_), separation(capacity_), mu(capacity_), restitution(capacity_), body_a(capacity_),
+        body_b(capacity_), point(capacity_),
         normal(capacity_), moves(capacity_ * nv_), support(capacity_ * nv_), support_size(capacity_), common(nv_),
         J(capacity_ * k_ * nv_), Z(J.size()), X(J.size()), inv_dg(nv_), dv(nv_), warm(capacity_ * k_) {
     linear_speed.resize(nbody);
@@ -249,6 +250,7 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
         const int fresh = s.slots;
         s.id[fresh] = L(T(-1));
         s.separation[fresh] = s.mu[fresh] = s.restitution[fresh] = zero;
+        s.body_a[fresh] = s.body_b[fresh] = L(T(-1));
         s.point[fresh] = s.normal[fresh] = {zero, zero, zero};
         for (int i = 0; i < k * nv; ++i) s.J[fresh * k * nv + i] = zero;
         for (int j = 0; j < nv; ++j) s.moves[fresh * nv + j] = 0;
@@ -263,6 +265,8 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
         s.separation[slot] = lane::select(here, point.separation, s.separation[slot]);
         s.mu[slot] = lane::select(here, mu, s.mu[slot]);
         s.restitution[slot] = lane::select(here, L(pair.restitution), s.restitution[slot]);
+        s.body_a[slot] = lane::select(here, L(static_cast<T>(pair.ground ? -1 : pair.body_a)), s.body_a[slot]);
+        s.body_b[slot] = lane::select(here, L(static_cast<T>(pair.body_b)), s.body_b[slot]);
         Vec3<L>& x = s.point[slot];
         x = {lane::select(here, point.point.x, x.x), lane::select(here, point.point.y, x.y),
              lane::select(here, point.point.z, x.z)};
@@ -513,6 +517,49 @@ void add_contact_impulses(const KernelModel<lane::scalar_t<L>>& km, const lane::
                           ContactScratch<L>& s, L* out) {
   contact_velocity_change<L>(km, H, x, s);
   for (int j = 0; j < s.nv; ++j) out[j] = out[j] + s.dv[j];
+}
+
+// The slots' impulses x (k per slot; zero where `rest`) as wrenches on
+// their bodies, added into sum (6 per body, [field][lane], for the bodies
+// listed in `bodies`, those of some contact pair:
+// [linear; angular about the world origin], world axes): n x_n + t1 x_1 +
+// t2 x_2 at the point (and x_torsion about n) on body B, its opposite on
+// body A. Per slot and body a select on the lanes whose point is on it: no
+// lane's data steers the loop.
+template <class L>
+void add_contact_wrenches(const ContactScratch<L>& s, const L* x, const lane::mask_t<L>& rest,
+                          const std::vector<int>& bodies, lane::scalar_t<L>* sum) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const int k = s.k;
+  const L zero(T(0));
+  for (int c = 0; c < s.slots; ++c) {
+    const auto active = !rest && s.count > L(static_cast<T>(c));
+    auto impulse = [&](int i) { return lane::select(active, x[c * k + i], zero); };
+    const Vec3<L>& n = s.normal[c];
+    Vec3<L> t1, t2;
+    tangent_frame(n, t1, t2);
+    const L xn = impulse(0), x1 = impulse(1), x2 = impulse(2);
+    const Vec3<L> f = {lane::fmadd(t2.x, x2, lane::fmadd(t1.x, x1, n.x * xn)),
+                       lane::fmadd(t2.y, x2, lane::fmadd(t1.y, x1, n.y * xn)),
+                       lane::fmadd(t2.z, x2, lane::fmadd(t1.z, x1, n.z * xn))};
+    Vec3<L> torque = spatial::cross(s.point[c], f);
+    if (k > 3) {
+      const L xt = impulse(3);
+      torque = {lane::fmadd(n.x, xt, torque.x), lane::fmadd(n.y, xt, torque.y), lane::fmadd(n.z, xt, torque.z)};
+    }
+    const L w[6] = {f.x, f.y, f.z, torque.x, torque.y, torque.z};
+    for (std::size_t i = 0; i < bodies.size(); ++i) {
+      const L body(static_cast<T>(bodies[i]));
+      const auto on_b = s.body_b[c] == body, on_a = s.body_a[c] == body;
+      if (lane::all<L>(!(on_b || on_a))) continue;
+      T* out = sum + 6 * bodies[i] * W;
+      for (int j = 0; j < 6; ++j) {
+        const L added = lane::select(on_b, w[j], zero) - lane::select(on_a, w[j], zero);
+        lane::store(lane::load<L>(out + j * W) + added, out + j * W);
+      }
+    }
+  }
 }
 
 // The slots, their impulses x (k per slot; zero where `rest`) and
