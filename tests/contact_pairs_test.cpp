@@ -284,6 +284,36 @@ TEST(ContactPairs, RestoreCarriesTheContactReport) {
   EXPECT_EQ(sim.contact_overflow(1).overflow_steps, 15);
 }
 
+// With substeps the step's contact wrenches (summed over its runs) are in
+// snapshots and cleared by a reset; a snapshot of a simulator with one run
+// per step, which has none, restores them as zero until the next step.
+TEST(ContactPairs, SnapshotsCarryTheStepsContactWrenchesWithSubsteps) {
+  const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0);
+  StepOptions o;
+  o.contacts.ground = true;
+  o.substeps = 3;
+  Simulator sim(model, 2, o);
+  sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, 0.1)), Eigen::VectorXd::Zero(6));
+  sim.set_state(1, free_pose(Eigen::Vector3d(3, 0, 5)), Eigen::VectorXd::Zero(6));
+  sim.step(10);
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> resting = sim.body_contact_wrenches(0);
+  EXPECT_NEAR(resting(2, 0), 9.81, 1e-4) << "the box's weight";
+  EXPECT_EQ(sim.body_contact_wrenches(1).norm(), 0.0);
+  sim.restore(1, sim.snapshot(0));
+  EXPECT_EQ(sim.body_contact_wrenches(1), resting);
+  sim.reset(1);
+  EXPECT_EQ(sim.body_contact_wrenches(1).norm(), 0.0);
+  StepOptions one_run = o;
+  one_run.substeps = 1;
+  Simulator other(model, 1, one_run);
+  other.set_state(0, free_pose(Eigen::Vector3d(0, 0, 0.1)), Eigen::VectorXd::Zero(6));
+  other.step(10);
+  sim.restore(1, other.snapshot(0));
+  EXPECT_EQ(sim.body_contact_wrenches(1).norm(), 0.0);
+  sim.step();
+  EXPECT_NEAR(sim.body_contact_wrenches(1)(2, 0), 9.81, 1e-4);
+}
+
 // Contact forces per contact and per body: a 2 kg ball resting on the
 // ground presses with 2 g; the body wrench holds the same force.
 TEST(ContactPairs, ForcesPerContactAndPerBody) {
