@@ -217,6 +217,32 @@ void validate_link_damping(const Model& model, const StepOptions& o) {
   }
 }
 
+// Model::mimics as the step takes them (the URDF loader checks its own;
+// a caller may add or edit them): each couples two distinct DOFs of
+// revolute or prismatic joints, with a multiplier and an offset finite in
+// the step's precision. A DOF may follow several tags, as in PhysX.
+void validate_mimics(const Model& model, const StepOptions& o) {
+  if (o.stages[static_cast<int>(Stage::MimicJoints)] == StageMode::Off) return;
+  auto one_dof = [&](int k) {
+    if (k < 0 || k >= model.nv) return false;
+    const JointType type = model.body_joint[model.dof_body[k]];
+    return type == JointType::Revolute || type == JointType::Prismatic;
+  };
+  for (std::size_t i = 0; i < model.mimics.size(); ++i) {
+    const Mimic& m = model.mimics[i];
+    const std::string where = "Model::mimics[" + std::to_string(i) + "]: ";
+    require(one_dof(m.dof) && one_dof(m.leader_dof), [&] {
+      return where + "dof " + std::to_string(m.dof) + " and leader_dof " + std::to_string(m.leader_dof) +
+             " must be DOFs of revolute or prismatic joints (of " + std::to_string(model.nv) + ")";
+    });
+    require(m.dof != m.leader_dof, [&] { return where + model.dof_name[m.dof] + " follows itself"; });
+    require(finite_in(o.precision, m.multiplier) && finite_in(o.precision, m.offset), [&] {
+      return where + "multiplier and offset must be " + finite_word(o.precision) + ", got " +
+             number_text(m.multiplier) + " and " + number_text(m.offset);
+    });
+  }
+}
+
 void validate(const Model& model, int copies, const StepOptions& o, const std::vector<DofSettings>& dofs) {
   require(copies >= 1, "Simulator: copies must be at least 1, got " + std::to_string(copies));
   // and its substeps positive in the precision the step runs in
@@ -239,6 +265,7 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
   require(!o.conserve_linear_momentum || o.integrator == Integrator::SemiImplicitEuler,
           "StepOptions::conserve_linear_momentum needs the semi-implicit Euler integrator");
   validate_link_damping(model, o);
+  validate_mimics(model, o);
   // every copy starts with these: beyond the precision's range each would fault
   require(!o.contacts.ground || finite_in(o.precision, o.contacts.ground_height), [&] {
     return "ContactSettings::ground_height must be " + finite_word(o.precision) + ", got " +

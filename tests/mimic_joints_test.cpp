@@ -177,6 +177,31 @@ TEST(MimicJoints, SimdLanesMatchTheScalarPath) {
     }
 }
 
+// Tags added or edited in a Model by hand are checked as the step takes
+// them, each named by its index; several tags on one DOF are allowed.
+TEST(MimicJoints, TagsTheStepCannotTakeAreRefusedByIndex) {
+  const Model base = sliders(1.0, 1.0, 2.0, 0.0);
+  auto expect_refused = [&](Mimic mimic, const std::string& piece) {
+    Model model = base;
+    model.mimics.push_back(mimic);
+    EXPECT_THROW_WITH(Simulator(model, 1), std::invalid_argument, "Model::mimics[1]: " + piece);
+    StepOptions off;
+    off.force(Stage::MimicJoints, StageMode::Off);
+    EXPECT_NO_THROW(Simulator(model, 1, off)) << piece;
+  };
+  expect_refused({0, 2, 1.0, 0.0}, "dof 0 and leader_dof 2 must be DOFs of revolute or prismatic joints (of 2)");
+  expect_refused({-1, 0, 1.0, 0.0}, "dof -1 and leader_dof 0");
+  expect_refused({1, 1, 1.0, 0.0}, "follower_joint follows itself");
+  expect_refused({0, 1, 1e39, 0.0}, "multiplier and offset must be finite (in float");
+  expect_refused({0, 1, 1.0, std::nan("")}, "multiplier and offset must be finite");
+  Model twice = base;
+  twice.mimics.push_back({1, 0, 2.0, 0.0});  // the same tag again: consistent, redundant
+  Simulator sim(twice, 1, options(Precision::Double, SolverType::PGS));
+  sim.step(10);
+  const Eigen::VectorXd q = sim.q(0);
+  EXPECT_NEAR(q[1] - 2.0 * q[0], 0.0, 1e-12);
+}
+
 // Forced off, the plan and the warnings say the tags are not enforced;
 // left to the plan, they are, and nothing is said.
 TEST(MimicJoints, ThePlanSaysWhetherTheyAreEnforced) {
