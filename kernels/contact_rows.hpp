@@ -257,9 +257,11 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
         ++s.slots;
       }
       const L id(static_cast<T>(pair.first_candidate + c));
-      for (int slot = 0; slot < s.slots; ++slot) {
-        const auto here = active && (s.count == L(static_cast<T>(slot)));
-        if (lane::all<L>(!here)) continue;
+      // the point into `slot` in the lanes `here`; `taken`: the slot held
+      // another point there, whose J may reach other DOFs (a lane's slot
+      // otherwise starts the step empty, its J zero outside the DOFs of
+      // the point's pair)
+      auto write = [&](int slot, const lane::mask_t<L>& here, bool taken) {
         for (int j : pair.dofs) s.moves[slot * nv + j] = 1;
         s.id[slot] = lane::select(here, id, s.id[slot]);
         s.separation[slot] = lane::select(here, point.separation, s.separation[slot]);
@@ -273,12 +275,35 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
         Vec3<L>& n = s.normal[slot];
         n = {lane::select(here, point.normal.x, n.x), lane::select(here, point.normal.y, n.y),
              lane::select(here, point.normal.z, n.z)};
-        // a lane's slot holds one point per step and starts the step empty,
-        // so its J is zero outside the DOFs of that point's pair
         L* J = &s.J[slot * k * nv];
+        if (taken)
+          for (int i = 0; i < k * nv; ++i) J[i] = lane::select(here, zero, J[i]);
         const L* candidate_J = s.candidate_J.data();
         for (int i = 0; i < k; ++i)
           for (int j : pair.dofs) J[i * nv + j] = lane::select(here, candidate_J[i * nv + j], J[i * nv + j]);
+      };
+      for (int slot = 0; slot < s.slots; ++slot) {
+        const auto here = active && (s.count == L(static_cast<T>(slot)));
+        if (lane::any<L>(here)) write(slot, here, false);
+      }
+      // A lane whose slots are full keeps its deepest points: the point
+      // takes the slot of the lane's shallowest one if it lies deeper (a
+      // box flat on the ground with 2 slots for its 4 corners once kept
+      // the first two found, tipped and sank).
+      const auto full = active && s.count >= L(static_cast<T>(s.capacity));
+      if (lane::any<L>(full)) {
+        L shallowest = s.separation[0], shallowest_slot = zero;
+        for (int slot = 1; slot < s.capacity; ++slot) {
+          const auto above = s.separation[slot] > shallowest;
+          shallowest = lane::select(above, s.separation[slot], shallowest);
+          shallowest_slot = lane::select(above, L(static_cast<T>(slot)), shallowest_slot);
+        }
+        const auto deeper = full && point.separation < shallowest;
+        if (lane::any<L>(deeper))
+          for (int slot = 0; slot < s.capacity; ++slot) {
+            const auto here = deeper && shallowest_slot == L(static_cast<T>(slot));
+            if (lane::any<L>(here)) write(slot, here, true);
+          }
       }
       s.count = s.count + lane::select(active, one, zero);
     }

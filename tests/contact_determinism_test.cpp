@@ -169,6 +169,25 @@ TEST_P(ContactDeterminism, SimdLanesMatchTheScalarReference) {
   for (int c = 0; c < simd.copies(); ++c) expect_same(scalar, c, simd, c, "copy " + std::to_string(c));
 }
 
+// With 3 slots, fewer than some copies' points: those keep their deepest
+// (replacing a shallower point per lane), the others all of theirs, and
+// the lanes still give the scalar path's bits.
+TEST_P(ContactDeterminism, SimdLanesMatchTheScalarReferenceWhenSlotsOverflow) {
+  const std::vector<unsigned> s = seed_range(11, 300u);
+  StepOptions simd_options = options(Lanes::Simd), scalar_options = options(Lanes::Scalar);
+  simd_options.contacts.capacity = scalar_options.contacts.capacity = 3;
+  Simulator simd = make(s, simd_options), scalar = make(s, scalar_options);
+  int overflowed = 0;
+  for (int step = 0; step < kSteps; ++step) {
+    simd.step();
+    scalar.step();
+    for (int c = 0; c < simd.copies(); ++c) overflowed += simd.contact_overflow(c).dropped > 0;
+  }
+  EXPECT_GT(overflowed, 0);
+  EXPECT_LT(overflowed, kSteps * simd.copies());
+  for (int c = 0; c < simd.copies(); ++c) expect_same(scalar, c, simd, c, "copy " + std::to_string(c));
+}
+
 // Mid-run snapshot, 20 more steps, restore, the same 20 steps again.
 TEST_P(ContactDeterminism, RestoredSnapshotReplays) {
   Simulator sim = make(seed_range(9, 500u), options());

@@ -213,6 +213,28 @@ TEST_P(ContactPrecision, ContactForcesAreTheStepsImpulseOverDtWithSubsteps) {
   }
 }
 
+// More points than slots: a 0.2 m box dropped flat has 4 corners on the
+// ground and 1 or 2 slots; each step keeps its deepest corners, and the box
+// stays up (its centre within 0.5 mm of 0.1 m after 1 s, turned less than
+// 0.01 rad). Keeping the first points found, it tipped over and sank 0.12
+// m (2 slots) or 0.15 m (1) through the ground.
+TEST_P(ContactPrecision, ABoxWithFewerSlotsThanCornersKeepsItsDeepestAndStaysUp) {
+  const double half = 0.1;
+  const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(half), 1.0);
+  for (int capacity : {1, 2}) {
+    StepOptions o = options();
+    o.contacts.capacity = capacity;
+    Simulator sim(model, 1, o);
+    sim.set_state(0, free_pose(Eigen::Vector3d(0, 0, half + 0.02)), Eigen::VectorXd::Zero(6));
+    sim.step(500);
+    const Eigen::VectorXd q = sim.q(0);
+    EXPECT_NEAR(q[2], half, 5e-4) << capacity << " slots";
+    const Eigen::Quaterniond turn(q[3], q[4], q[5], q[6]);
+    EXPECT_LT(Eigen::AngleAxisd(turn).angle(), 0.01) << capacity << " slots";
+    EXPECT_GT(sim.contact_overflow(0).overflow_steps, 0) << capacity << " slots: points were dropped";
+  }
+}
+
 // A 1 kg ball of radius 0.1 m dropped from 1 m onto the ground, ball and
 // ground of restitution e: the greatest height of each of its first
 // `count` flights after a bounce (within 20 s).
