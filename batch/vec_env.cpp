@@ -15,6 +15,29 @@ namespace {
 
 bool is_free_dof(const Model& m, int k) { return m.body_joint[m.dof_body[k]] == JointType::Free; }
 
+// The mimic tags, a DOF's first only, each after the tag of its leader's
+// (a chain's targets follow its head's): (follower q, leader q,
+// multiplier, offset). The loader refuses cycles; a tag left in one
+// (added by hand) is left out.
+std::vector<VecEnv::MimicTarget> ordered_mimics(const Model& m) {
+  auto q_of = [&](int k) { return m.body_q_offset[m.dof_body[k]]; };  // revolute or prismatic: one q each
+  std::vector<const Mimic*> first(m.nv, nullptr);
+  for (const Mimic& mimic : m.mimics)
+    if (!first[mimic.dof]) first[mimic.dof] = &mimic;
+  std::vector<VecEnv::MimicTarget> out;
+  std::vector<bool> placed(m.nv, false);
+  for (bool progress = true; progress;) {
+    progress = false;
+    for (int k = 0; k < m.nv; ++k) {
+      const Mimic* mimic = first[k];
+      if (!mimic || placed[k] || (first[mimic->leader_dof] && !placed[mimic->leader_dof])) continue;
+      out.push_back({q_of(k), q_of(mimic->leader_dof), mimic->multiplier, mimic->offset});
+      placed[k] = progress = true;
+    }
+  }
+  return out;
+}
+
 VecEnvOptions checked(const Model& model, VecEnvOptions o) {
   require(model.nbody > 0,
           "VecEnv: the model has no moving body (a fixed base without joints): there is nothing to step or observe");
@@ -84,8 +107,15 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
       action_field_.push_back(static_cast<int>(a));
     }
   } else {
+    // a DOF that follows a mimic tag the step holds takes no action: with
+    // position targets its target follows its leader's (follow_leaders)
+    std::vector<bool> follower(model.nv, false);
+    if (sim_.plan()[static_cast<int>(Stage::MimicJoints)].runs) {
+      for (const Mimic& mimic : model.mimics) follower[mimic.dof] = true;
+      mimic_targets_ = ordered_mimics(model);
+    }
     for (int k = 0; k < model.nv; ++k)
-      if (!is_free_dof(model, k)) action_dofs_.push_back(k);
+      if (!is_free_dof(model, k) && !follower[k]) action_dofs_.push_back(k);
     for (int k : action_dofs_)  // the DOF's torque, or the first target coordinate of its joint
       action_field_.push_back(options_.action_mode == ActionMode::Torque ? k : model.body_q_offset[model.dof_body[k]]);
   }
@@ -292,9 +322,21 @@ void VecEnv::apply_actions(const Eigen::Ref<const RowMatrix>& actions) {
           }
           a += 3;
         }
+        if (!torque) follow_leaders(out, W, lanes);
       }
     });
   });
+}
+
+// The mimic followers' position targets from their leaders':
+// q_f = multiplier q_l + offset, so that a follower's drive agrees with
+// the tag the step holds rather than pulling against it.
+template <class T>
+void VecEnv::follow_leaders(T* target_q, int width, int lanes) const {
+  for (const MimicTarget& m : mimic_targets_)
+    for (int l = 0; l < lanes; ++l)
+      target_q[m.follower_q * width + l] =
+          static_cast<T>(m.multiplier * static_cast<double>(target_q[m.leader_q * width + l]) + m.offset);
 }
 
 std::vector<std::string> VecEnv::action_names() const {

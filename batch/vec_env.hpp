@@ -113,6 +113,12 @@ struct EnvCopyState {
 
 class VecEnv {
  public:
+  // A mimic follower's position target from its leader's (apply_actions).
+  struct MimicTarget {
+    int follower_q, leader_q;
+    double multiplier, offset;
+  };
+
   // Throws std::invalid_argument naming the option that is wrong. Reset
   // every copy before the first step() (reset(), or the other forms
   // covering them all). Keeps a reference to the model, which
@@ -180,6 +186,8 @@ class VecEnv {
   void reset_copies(const std::vector<int>& copies);
   void randomize(int copy, std::uint32_t reset);
   void apply_actions(const Eigen::Ref<const RowMatrix>& actions);
+  template <class T>
+  void follow_leaders(T* target_q, int width, int lanes) const;
   // Observation rows of `copies` (all when null) from the simulator.
   void observe(const std::vector<int>* copies, Observations& out) const;
   template <class Batch>
@@ -196,6 +204,7 @@ class VecEnv {
   Simulator sim_;
   std::vector<int> action_dofs_;
   std::vector<int> action_field_;  // per action column: its field of tau (Torque) or target_q (PositionTarget)
+  std::vector<MimicTarget> mimic_targets_;  // followers whose targets follow their leaders', in that order
   Eigen::Isometry3d fixed_base_pose_ = Eigen::Isometry3d::Identity();  // the base when it does not float
   bool ready_ = false;  // reset() was called
   bool contacts_ = false;  // the contacts stage runs: the copies keep a ground of their own

@@ -3,6 +3,7 @@
 // offset = 0). Checked against the constrained dynamics of two sliders by
 // hand, the error reduction's exact decay, panda's fingers, and the SIMD
 // lanes against the scalar path.
+#include "batch/vec_env.hpp"
 #include "tests/sim_support.hpp"
 
 #include <gtest/gtest.h>
@@ -200,6 +201,40 @@ TEST(MimicJoints, TagsTheStepCannotTakeAreRefusedByIndex) {
   sim.step(10);
   const Eigen::VectorXd q = sim.q(0);
   EXPECT_NEAR(q[1] - 2.0 * q[0], 0.0, 1e-12);
+}
+
+// A VecEnv takes no action for a mimic follower: panda has 8 action
+// columns (the arm's 7, the first finger), and the second finger's
+// position target follows the first's, so that both drives agree with the
+// tag; both fingers reach the commanded opening. With the stage forced off
+// each finger is its own column again. (Without gravity, so that the
+// drives reach their targets.)
+TEST(MimicJoints, AVecEnvActsOnTheLeaderAndTheFollowersTargetFollows) {
+  Model model = load_shared_model("panda", false);
+  model.gravity.setZero();
+  const int f1 = model.dof_index("panda_finger_joint1"), f2 = model.dof_index("panda_finger_joint2");
+  VecEnvOptions o;
+  o.action_mode = ActionMode::PositionTarget;
+  o.dofs = default_dof_settings(model);
+  for (DofSettings& d : o.dofs) d.drive_stiffness = 400, d.drive_damping = 40;
+  o.initial_q = Eigen::VectorXd::Zero(model.nq);
+  o.initial_q << 0, -0.785, 0, -2.356, 0, 1.571, 0.785, 0, 0;
+  VecEnv env(model, 3, o);
+  ASSERT_EQ(env.action_size(), 8);
+  EXPECT_EQ(env.action_names().back(), "panda_finger_joint1");
+  env.reset();
+  RowMatrix actions(3, 8);
+  for (int c = 0; c < 3; ++c) actions.row(c) = env.position_action(o.initial_q);
+  for (int c = 0; c < 3; ++c) actions(c, 7) = 0.01 * (c + 1);
+  for (int i = 0; i < 500; ++i) env.step(actions);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_EQ(env.simulator().batch<float>().target_q.at(c, f2), env.simulator().batch<float>().target_q.at(c, f1));
+    const Eigen::VectorXd q = env.simulator().q(c);
+    EXPECT_NEAR(q[f1], 0.01 * (c + 1), 1e-4) << "copy " << c;
+    EXPECT_NEAR(q[f2], q[f1], 2e-8) << "copy " << c;
+  }
+  o.step.force(Stage::MimicJoints, StageMode::Off);
+  EXPECT_EQ(VecEnv(model, 1, o).action_size(), 9);
 }
 
 // Forced off, the plan and the warnings say the tags are not enforced;
