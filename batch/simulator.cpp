@@ -119,6 +119,7 @@ template <class T>
 void clear_warm_start(StepBatch<T>& b, int copy) {
   b.impulse.fill(copy, 0);
   b.contact_id.fill(copy, -1);
+  b.contact_wrench.fill(copy, 0);
   b.momentum_remainder.fill(copy, 0);
   b.motion_recorded.fill(copy, 0);
 }
@@ -222,15 +223,20 @@ void validate_link_damping(const Model& model, const StepOptions& o) {
 // revolute or prismatic joints, with a multiplier and an offset finite in
 // the step's precision. A DOF may follow several tags, as in PhysX.
 void validate_mimics(const Model& model, const StepOptions& o) {
-  if (o.stages[static_cast<int>(Stage::MimicJoints)] == StageMode::Off) return;
+  auto in_range = [&](int k) { return k >= 0 && k < model.nv; };
   auto one_dof = [&](int k) {
-    if (k < 0 || k >= model.nv) return false;
     const JointType type = model.body_joint[model.dof_body[k]];
     return type == JointType::Revolute || type == JointType::Prismatic;
   };
   for (std::size_t i = 0; i < model.mimics.size(); ++i) {
     const Mimic& m = model.mimics[i];
     const std::string where = "Model::mimics[" + std::to_string(i) + "]: ";
+    // named by Simulator::warnings whether the stage runs or not
+    require(in_range(m.dof) && in_range(m.leader_dof), [&] {
+      return where + "dof " + std::to_string(m.dof) + " and leader_dof " + std::to_string(m.leader_dof) +
+             " must be DOFs of the model (of " + std::to_string(model.nv) + ")";
+    });
+    if (o.stages[static_cast<int>(Stage::MimicJoints)] == StageMode::Off) continue;
     require(one_dof(m.dof) && one_dof(m.leader_dof), [&] {
       return where + "dof " + std::to_string(m.dof) + " and leader_dof " + std::to_string(m.leader_dof) +
              " must be DOFs of revolute or prismatic joints (of " + std::to_string(model.nv) + ")";
@@ -1077,7 +1083,6 @@ void Simulator::reset(int copy) {
     for (auto* a : {&b.contact_count, &b.contact_dropped, &b.contact_overflow_steps})
       if (a->size() > 0) a->at(copy, 0) = 0;
     for (auto* a : applied_torque_report(b)) a->fill(copy, 0);  // no step since
-    b.contact_wrench.fill(copy, 0);
     b.actuator_state.fill(copy, 0);
     b.fault.at(copy, 0) = 0;
   });

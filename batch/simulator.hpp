@@ -68,7 +68,11 @@ struct StepBatch {
   // rows (DofSettings::friction > 0 with the Coulomb model, or
   // Stage::CoulombFriction forced On), from DofSettings::friction.
   BatchArray<T> joint_friction;
-  BatchArray<T> impulse;   // (rows) the solver's impulses of the last step: its warm start
+  // (rows) the solver's impulses of the last step, each along its row's J
+  // with the sign sigma left out (DOF axes: a limit row's impulse is
+  // negative at its upper limit): the warm start, and what applied_torque
+  // reports
+  BatchArray<T> impulse;
   BatchArray<T> initial_q; // (nq) what a reset restores
   BatchArray<T> initial_v; // (nv)
   BatchArray<T> fault;     // (1) Fault code, sticky

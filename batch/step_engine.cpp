@@ -545,6 +545,7 @@ void StepEngine<L>::end_block(int block, T h, bool first_run, Scratch& s) {
     };
     clear(B.impulse, T(0));
     clear(B.contact_id, T(-1));
+    clear(B.contact_wrench, T(0));
     clear(B.momentum_remainder, T(0));
     clear(B.motion_recorded, T(0));
     clear(B.actuator_state, T(0));
@@ -709,7 +710,11 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   }
   s.solving = true;
   const T* impulse = batch_.impulse.block(block);
-  for (int r = 0; r < mj; ++r) rows.lambda[r] = lane::select(rest, zero, warm * lane::load<L>(impulse + r * W));
+  // stored along J / sigma (finish_rows): a row whose sigma turned since
+  // (a joint heading for its other limit, a mimic error crossing zero)
+  // starts from the impulse that pushes as the last one did
+  for (int r = 0; r < mj; ++r)
+    rows.lambda[r] = lane::select(rest, zero, warm * rs.sigma[r] * lane::load<L>(impulse + r * W));
   for (int i = 0; i < mc; ++i) contact_rows.lambda[i] = contact_warm_start(s, i);
   // Mt's factors: from the step's one ABA at q (both Eulers: with link
   // damping's w D, body_terms.hpp), or, where the trapezoid's second ABA ran
@@ -807,7 +812,7 @@ void StepEngine<L>::finish_rows(int block, T h, Scratch& s) {
   }
   const L zero(T(0));
   T* impulse = batch_.impulse.block(block);
-  for (int r = 0; r < mj; ++r) lane::store(lane::select(rest, zero, rows.lambda[r]), impulse + r * W);
+  for (int r = 0; r < mj; ++r) lane::store(lane::select(rest, zero, rs.sigma[r] * rows.lambda[r]), impulse + r * W);
 }
 
 // PGS or TGS on the rows each lane needs, for the `count` blocks of s that
@@ -1130,7 +1135,7 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
   for (std::size_t r = 0; r < row_specs_.size(); ++r) {
     const JointRowSpec<T>& spec = row_specs_[r];
     T* out = spec.kind == JointRowKind::Friction ? friction : limits;
-    const L torque = s.rows.sigma[r] * lane::load<L>(impulse + r * W) * inv_h;
+    const L torque = lane::load<L>(impulse + r * W) * inv_h;  // stored along J / sigma (finish_rows)
     add(out + spec.dof * W, torque, false);
     if (spec.dof2 >= 0) add(out + spec.dof2 * W, L(spec.gear) * torque, false);
   }

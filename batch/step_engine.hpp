@@ -42,8 +42,8 @@ struct Simulator::Engine {
   virtual void set_plan(const StepPlan& plan) = 0;
   virtual int copies() const = 0;
   virtual int rows() const = 0;
-  // Each joint row's kind and DOF, in row order: what the warm start's
-  // joint impulses belong to.
+  // Each joint row's kind and DOF (and a mimic row's kind and leader DOF
+  // after it), in row order: what the warm start's joint impulses belong to.
   virtual std::vector<std::pair<int, int>> row_layout() const = 0;
   virtual std::size_t bytes_per_copy() const = 0;
 };
@@ -66,7 +66,10 @@ class StepEngine final : public Simulator::Engine {
   int rows() const override { return static_cast<int>(row_specs_.size()); }
   std::vector<std::pair<int, int>> row_layout() const override {
     std::vector<std::pair<int, int>> layout;
-    for (const JointRowSpec<T>& row : row_specs_) layout.emplace_back(static_cast<int>(row.kind), row.dof);
+    for (const JointRowSpec<T>& row : row_specs_) {
+      layout.emplace_back(static_cast<int>(row.kind), row.dof);
+      if (row.dof2 >= 0) layout.emplace_back(static_cast<int>(row.kind), row.dof2);  // a mimic row's leader
+    }
     return layout;
   }
   std::size_t bytes_per_copy() const override { return batch_.bytes_per_copy(); }

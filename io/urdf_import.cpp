@@ -395,6 +395,9 @@ ArticulationSpec urdf_articulation_from_string(const std::string& xml, const std
     for (const char* tag : {"collision", "visual"})
       while (XMLElement* e = l->FirstChildElement(tag)) l->DeleteChild(e);
   }
+  // and the robot's materials, which only visuals use: urdfdom logs an
+  // error for one without a colour, which would refuse the file below
+  while (XMLElement* e = robot->FirstChildElement("material")) robot->DeleteChild(e);
   tinyxml2::XMLPrinter printer;
   doc.Print(&printer);
   std::string urdfdom_errors;

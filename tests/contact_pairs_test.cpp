@@ -285,7 +285,7 @@ TEST(ContactPairs, RestoreCarriesTheContactReport) {
 }
 
 // With substeps the step's contact wrenches (summed over its runs) are in
-// snapshots and cleared by a reset; a snapshot of a simulator with one run
+// snapshots and cleared by a reset or set_state; a snapshot of a simulator with one run
 // per step, which has none, restores them as zero until the next step.
 TEST(ContactPairs, SnapshotsCarryTheStepsContactWrenchesWithSubsteps) {
   const Model model = single_body(ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0);
@@ -302,6 +302,9 @@ TEST(ContactPairs, SnapshotsCarryTheStepsContactWrenchesWithSubsteps) {
   sim.restore(1, sim.snapshot(0));
   EXPECT_EQ(sim.body_contact_wrenches(1), resting);
   sim.reset(1);
+  EXPECT_EQ(sim.body_contact_wrenches(1).norm(), 0.0);
+  sim.restore(1, sim.snapshot(0));
+  sim.set_state(1, free_pose(Eigen::Vector3d(3, 0, 5)), Eigen::VectorXd::Zero(6));  // no contacts until a step
   EXPECT_EQ(sim.body_contact_wrenches(1).norm(), 0.0);
   StepOptions one_run = o;
   one_run.substeps = 1;

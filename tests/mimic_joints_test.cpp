@@ -179,28 +179,52 @@ TEST(MimicJoints, SimdLanesMatchTheScalarPath) {
 }
 
 // Tags added or edited in a Model by hand are checked as the step takes
-// them, each named by its index; several tags on one DOF are allowed.
+// them, each named by its index (DOFs out of range even with the stage
+// forced off, whose warning names them); several tags on one DOF are
+// allowed.
 TEST(MimicJoints, TagsTheStepCannotTakeAreRefusedByIndex) {
-  const Model base = sliders(1.0, 1.0, 2.0, 0.0);
-  auto expect_refused = [&](Mimic mimic, const std::string& piece) {
+  auto expect_refused = [&](const Model& base, Mimic mimic, const std::string& piece, bool even_off) {
     Model model = base;
     model.mimics.push_back(mimic);
-    EXPECT_THROW_WITH(Simulator(model, 1), std::invalid_argument, "Model::mimics[1]: " + piece);
+    const std::string index = "Model::mimics[" + std::to_string(model.mimics.size() - 1) + "]: ";
+    EXPECT_THROW_WITH(Simulator(model, 1), std::invalid_argument, index + piece);
     StepOptions off;
     off.force(Stage::MimicJoints, StageMode::Off);
-    EXPECT_NO_THROW(Simulator(model, 1, off)) << piece;
+    if (even_off) {
+      EXPECT_THROW_WITH(Simulator(model, 1, off), std::invalid_argument, index + piece);
+    } else {
+      EXPECT_NO_THROW(Simulator(model, 1, off).warnings()) << piece;
+    }
   };
-  expect_refused({0, 2, 1.0, 0.0}, "dof 0 and leader_dof 2 must be DOFs of revolute or prismatic joints (of 2)");
-  expect_refused({-1, 0, 1.0, 0.0}, "dof -1 and leader_dof 0");
-  expect_refused({1, 1, 1.0, 0.0}, "follower_joint follows itself");
-  expect_refused({0, 1, 1e39, 0.0}, "multiplier and offset must be finite (in float");
-  expect_refused({0, 1, 1.0, std::nan("")}, "multiplier and offset must be finite");
+  const Model base = sliders(1.0, 1.0, 2.0, 0.0);
+  expect_refused(base, {0, 2, 1.0, 0.0}, "dof 0 and leader_dof 2 must be DOFs of the model (of 2)", true);
+  expect_refused(base, {-1, 0, 1.0, 0.0}, "dof -1 and leader_dof 0", true);
+  expect_refused(base, {1, 1, 1.0, 0.0}, "follower_joint follows itself", false);
+  expect_refused(base, {0, 1, 1e39, 0.0}, "multiplier and offset must be finite (in float", false);
+  expect_refused(base, {0, 1, 1.0, std::nan("")}, "multiplier and offset must be finite", false);
+  const Model anymal = load_shared_model("anymal_b", true);  // DOF 0 is the free root's
+  const int knee = anymal.dof_index("LF_KFE");
+  expect_refused(anymal, {knee, 0, 1.0, 0.0},
+                 "dof " + std::to_string(knee) + " and leader_dof 0 must be DOFs of revolute or prismatic joints",
+                 false);
   Model twice = base;
   twice.mimics.push_back({1, 0, 2.0, 0.0});  // the same tag again: consistent, redundant
   Simulator sim(twice, 1, options(Precision::Double, SolverType::PGS));
   sim.step(10);
   const Eigen::VectorXd q = sim.q(0);
   EXPECT_NEAR(q[1] - 2.0 * q[0], 0.0, 1e-12);
+}
+
+// A snapshot restores only into a simulator whose mimic rows couple the
+// same DOFs (its warm start is theirs).
+TEST(MimicJoints, ASnapshotRestoresOnlyWhereTheTagsCoupleTheSameDofs) {
+  const Model model = load_shared_model("panda", false);
+  Model other = model;
+  other.mimics.front().leader_dof = 1;
+  Simulator a(model, 1), b(model, 1), c(other, 1);
+  a.step(3);
+  EXPECT_NO_THROW(b.restore(0, a.snapshot(0)));
+  EXPECT_THROW_WITH(c.restore(0, a.snapshot(0)), std::invalid_argument, "restore");
 }
 
 // A VecEnv takes no action for a mimic follower: panda has 8 action

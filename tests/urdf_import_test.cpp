@@ -431,6 +431,14 @@ TEST(UrdfImportError, UrdfdomReasonIsKeptAndNotPrinted) {
   EXPECT_EQ(printed, "");
 }
 
+// A robot-level material without a colour (urdfdom logs an error for it)
+// is the visuals' business, which the loader leaves out: the file loads.
+TEST(UrdfImport, AMaterialWithoutColourIsNoError) {
+  const std::string xml = chain(R"(<axis xyz="0 1 0"/>)");
+  const std::string with_material = std::string(xml).insert(xml.find('>') + 1, R"(<material name="grey"/>)");
+  EXPECT_EQ(parse(with_material).links.size(), parse(xml).links.size());
+}
+
 // urdfdom logs these and still returns a model, the inertial read as
 // zero: refused with its reason, not loaded massless.
 TEST(UrdfImportError, AnInertialUrdfdomCannotReadIsRefused) {
