@@ -113,6 +113,8 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
     if (sim_.plan()[static_cast<int>(Stage::MimicJoints)].runs) {
       for (const Mimic& mimic : model.mimics) follower[mimic.dof] = true;
       mimic_targets_ = ordered_mimics(model);
+      // and the targets of every reset, which Torque mode's drives hold
+      follow_leaders(options_.drive_target_q.data(), 1, 1);
     }
     for (int k = 0; k < model.nv; ++k)
       if (!is_free_dof(model, k) && !follower[k]) action_dofs_.push_back(k);

@@ -243,7 +243,10 @@ TEST(MimicJoints, AVecEnvActsOnTheLeaderAndTheFollowersTargetFollows) {
   for (DofSettings& d : o.dofs) d.drive_stiffness = 400, d.drive_damping = 40;
   o.initial_q = Eigen::VectorXd::Zero(model.nq);
   o.initial_q << 0, -0.785, 0, -2.356, 0, 1.571, 0.785, 0, 0;
+  o.drive_target_q = o.initial_q;
+  o.drive_target_q[f1] = 0.02;  // the second finger's target follows: 0.02, not its own 0
   VecEnv env(model, 3, o);
+  EXPECT_EQ(env.options().drive_target_q[f2], 0.02);
   ASSERT_EQ(env.action_size(), 8);
   EXPECT_EQ(env.action_names().back(), "panda_finger_joint1");
   env.reset();
