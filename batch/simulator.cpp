@@ -396,7 +396,9 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   pairs_ = build_contact_pairs(model, options_.contacts);
   own_inertia_bodies_.assign(copies, 0);
   own_joint_parameters_.assign(copies, 0);
+  // as the step holds them: rounded to its precision
   model_inertia_ = BatchState<double>::model_inertia_params(model);
+  if (options_.precision == Precision::Float) model_inertia_ = model_inertia_.cast<float>().cast<double>();
   joint_parameters_ = scene_joint_parameters(model, dofs_);
   make_plan();
   const StepPlan plan = step_plan();
@@ -751,6 +753,17 @@ Eigen::VectorXd pack(const Arrays& arrays, int copy) {
   return packed;
 }
 
+// The entries of `array`, one of `arrays`, in a packed copy of them.
+template <class Arrays, class Array>
+Eigen::VectorXd packed_entries(const Eigen::VectorXd& packed, const Arrays& arrays, const Array* array) {
+  int at = 0;
+  for (const auto* a : arrays) {
+    if (a == array) return packed.segment(at, a->size());
+    at += a->size();
+  }
+  return {};
+}
+
 template <class Arrays>
 void unpack(const Eigen::VectorXd& packed, int copy, const Arrays& arrays) {
   int at = 0;
@@ -800,6 +813,12 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
             "restore: the snapshot's applied torques do not match this simulator's record_applied_torque");
     require(s.recorded_motion.size() == packed_size(recorded_motion(b)),
             "restore: the snapshot's recorded motion does not match this simulator's record_motion");
+    // what set_joint_damping and set_armature would refuse here (a snapshot
+    // of a simulator without the momentum projection)
+    check_free_of_floating_bases(packed_entries(s.parameters, copy_parameters(b), &b.joint_damping),
+                                 "restore: the snapshot's joint damping");
+    check_free_of_floating_bases(packed_entries(s.parameters, copy_parameters(b), &b.armature),
+                                 "restore: the snapshot's armature");
     unpack(s.parameters, copy, copy_parameters(b));
     unpack(s.contact_report, copy, contact_report(b));
     unpack(s.applied_torque, copy, applied_torque_report(b));
@@ -980,6 +999,11 @@ void Simulator::set_armature(int copy, const Eigen::VectorXd& armature) {
 void Simulator::set_joint_friction(int copy, const Eigen::VectorXd& friction) {
   check_copy(copy, "set_joint_friction");
   check_per_dof(friction, "set_joint_friction");
+  for (int k = 0; k < model_->nv; ++k)  // as DofSettings::friction (validate)
+    require(friction[k] == 0 || model_->body_joint[model_->dof_body[k]] != JointType::Free, [&] {
+      return "set_joint_friction: DOF " + std::to_string(k) + " (" + model_->dof_name[k] +
+             ") belongs to a floating base: friction acts on revolute, prismatic and spherical joints only";
+    });
   visit([&](auto& b) { b.joint_friction.set(copy, friction); });
   note_own_joint_parameters(copy, kFriction);
 }
@@ -1364,13 +1388,18 @@ ContactOverflow Simulator::contact_overflow(int copy) const {
 
 double Simulator::energy(int copy) const {
   check_copy(copy, "energy");
-  // One copy's state, inertial parameters and gravity, in double.
+  refresh_plan();
+  // One copy's state, inertial parameters and gravity, in double; its own
+  // inertias and armature where the step takes them (their stages run),
+  // else the model's and the scene's
+  const bool own_inertia = plan_[static_cast<int>(Stage::PerCopyInertia)].runs;
+  const bool own_armature = plan_[static_cast<int>(Stage::PerCopyJointParameters)].runs;
   const BatchDynamics<double> dynamics(*model_);
   BatchState<double> one = dynamics.make_state(1);
   visit([&](auto& b) {
     one.q.set(0, b.state.q.get(copy));
     one.v.set(0, b.state.v.get(copy));
-    one.inertia.set(0, b.state.inertia.get(copy));
+    one.inertia.set(0, own_inertia ? b.state.inertia.get(copy) : model_inertia_);
     one.gravity.set(0, b.state.gravity.get(copy));
   });
   BatchArray<double> kinetic = dynamics.make_array(1, 1), potential = dynamics.make_array(1, 1);
@@ -1379,7 +1408,8 @@ double Simulator::energy(int copy) const {
   // the kinetic energy holds the model's armature: the copy's own instead
   double armature_change = 0;
   visit([&](auto& b) {
-    const Eigen::VectorXd armature = b.armature.get(copy), v = b.state.v.get(copy);
+    const Eigen::VectorXd armature = own_armature ? b.armature.get(copy) : joint_parameters_.armature;
+    const Eigen::VectorXd v = b.state.v.get(copy);
     for (int k = 0; k < model_->nv; ++k) armature_change += 0.5 * (armature[k] - model_->dof_armature[k]) * v[k] * v[k];
   });
   return kinetic.at(0, 0) + armature_change + potential.at(0, 0);

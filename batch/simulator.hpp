@@ -275,11 +275,15 @@ class Simulator {
   // (nv) per-copy armature (rotor inertia) [kg m^2 or kg], overriding the model's.
   void set_armature(int copy, const Eigen::VectorXd& armature);
   // (nv) per-copy Coulomb joint friction [N m or N], overriding
-  // DofSettings::friction on the DOFs that have friction rows (others ignore it).
+  // DofSettings::friction on the DOFs that have friction rows (others ignore
+  // it); none on a floating base's DOFs.
   void set_joint_friction(int copy, const Eigen::VectorXd& friction);
   // One body's inertial parameters in one copy: mass [kg], COM in the body
   // frame, rotational inertia about the COM in body axes (symmetric positive
-  // semidefinite).
+  // semidefinite). Values that leave a DOF with no inertia to move (a leaf
+  // link made massless) are not refused here, as the constructor refuses
+  // them for the model (that check is a factorisation, too dear for a
+  // reset): the copy's next step faults it (NonFiniteState), alone.
   void set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com, const Eigen::Matrix3d& inertia);
   // World [force; torque about the body's COM]; the first call turns the
   // wrench stage on (bulk writers through batch<T>() force it On instead).

@@ -391,6 +391,54 @@ TEST(Simulator, EnergyCountsTheCopysArmature) {
   EXPECT_LT(spread, 1e-9);
 }
 
+// With their stages forced off the step takes the model's inertias and
+// the scene's armature, and so does energy(): two spinners turning alike
+// have one energy whatever a copy was given.
+TEST(Simulator, EnergyTakesWhatTheStepTakesWithStagesForcedOff) {
+  const Model model = spinner(0.1);
+  StepOptions o;
+  o.force(Stage::PerCopyInertia, StageMode::Off).force(Stage::PerCopyJointParameters, StageMode::Off);
+  Simulator sim(model, 2, o);
+  sim.set_body_inertia(1, 0, 5.0, Eigen::Vector3d::Zero(), 2.0 * Eigen::Matrix3d::Identity());
+  sim.set_armature(1, Eigen::VectorXd::Constant(1, 1.0));
+  for (int c : {0, 1}) sim.set_state(c, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, 4.0));
+  sim.step(5);
+  EXPECT_EQ(sim.v(0), sim.v(1));
+  EXPECT_EQ(sim.energy(0), sim.energy(1));
+  EXPECT_NEAR(sim.energy(0), 0.5 * 0.1 * 16.0, 1e-6);
+}
+
+// Per-copy inputs the constructor's checks would refuse are refused by the
+// setters and by restore too: Coulomb friction on a floating base, and
+// with the momentum projection damping or armature on one.
+TEST(Simulator, SettersAndRestoreRefuseWhatTheConstructorRefuses) {
+  const Model box = free_box(Eigen::Vector3d::Constant(0.1), 1.0);
+  Simulator plain(box, 1);
+  EXPECT_THROW_WITH(plain.set_joint_friction(0, Eigen::VectorXd::Constant(6, 0.5)), std::invalid_argument,
+                    "set_joint_friction: DOF 0");
+  plain.set_joint_damping(0, Eigen::VectorXd::Constant(6, 5.0));
+  StepOptions keep;
+  keep.conserve_linear_momentum = true;
+  Simulator projected(box, 1, keep);
+  EXPECT_THROW_WITH(projected.restore(0, plain.snapshot(0)), std::invalid_argument,
+                    "restore: the snapshot's joint damping: DOF 0");
+  EXPECT_EQ(projected.v(0), Eigen::VectorXd::Zero(6)) << "nothing restored";
+}
+
+// A copy's readout does not move when another copy's inertia is set: the
+// model's inertias, which the step takes while no copy has its own, are
+// those it holds (rounded to float), as they are once the stage runs.
+TEST(Simulator, AnotherCopysInertiaLeavesACopysJointForcesAlone) {
+  const Model model = test::load_shared_model("ur5", false);
+  StepOptions o;
+  o.record_motion = true;
+  Simulator sim(model, 2, o);
+  sim.step();
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> before = sim.incoming_joint_forces(0);
+  sim.set_body_inertia(1, 2, 2.0 * model.body_mass[2], model.body_com[2], model.body_inertia[2]);
+  EXPECT_EQ(sim.incoming_joint_forces(0), before);
+}
+
 // An Acceleration drive's gains are in 1/s^2 and 1/s: the response of a
 // single joint does not depend on its inertia (PhysX eACCELERATION).
 TEST(Simulator, AccelerationDriveIgnoresInertia) {
