@@ -52,6 +52,13 @@ inline L friction_impulse_bound(const JointRowSpec<lane::scalar_t<L>>& spec, con
   return lane::load<L>(friction + spec.dof * lane::width_v<L>) * L(dt);
 }
 
+// J_r x / sigma_r for a vector x (nv) over the DOFs: x[dof], plus
+// G x[dof2] for a mimic row.
+template <class T, class L>
+LOCKSTEP_INLINE L joint_row_dofs(const JointRowSpec<T>& spec, const L* x) {
+  return spec.dof2 < 0 ? x[spec.dof] : lane::fmadd(L(spec.gear), x[spec.dof2], x[spec.dof]);
+}
+
 // One joint row of one block, per lane, from q and the free velocity u*.
 template <class L>
 struct JointRow {
@@ -70,7 +77,7 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
   constexpr std::size_t W = lane::width_v<L>;
   const T inf = std::numeric_limits<T>::infinity();
   const L one(T(1)), zero(T(0));
-  const L u = spec.dof2 < 0 ? v_free[spec.dof] : lane::fmadd(L(spec.gear), v_free[spec.dof2], v_free[spec.dof]);
+  const L u = joint_row_dofs(spec, v_free);
   JointRow<L> row{one, zero, zero, zero, L(-inf), L(inf), u, false};
   switch (spec.kind) {
     case JointRowKind::Mimic: {
@@ -121,13 +128,6 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
   }
   row.v_free = row.sigma * u;
   return row;
-}
-
-// J_r x / sigma_r for a vector x (nv) over the DOFs: x[dof], plus
-// G x[dof2] for a mimic row.
-template <class T, class L>
-LOCKSTEP_INLINE L joint_row_dofs(const JointRowSpec<T>& spec, const L* x) {
-  return spec.dof2 < 0 ? x[spec.dof] : lane::fmadd(L(spec.gear), x[spec.dof2], x[spec.dof]);
 }
 
 // Joint row r's velocity (built by build_joint_rows) once other rows'
