@@ -21,16 +21,13 @@ bool is_free_dof(const Model& m, int k) { return m.body_joint[m.dof_body[k]] == 
 // (added by hand) is left out.
 std::vector<VecEnv::MimicTarget> ordered_mimics(const Model& m) {
   auto q_of = [&](int k) { return m.body_q_offset[m.dof_body[k]]; };  // revolute or prismatic: one q each
-  std::vector<const Mimic*> first(m.nv, nullptr);
-  for (const Mimic& mimic : m.mimics)
-    if (!first[mimic.dof]) first[mimic.dof] = &mimic;
   std::vector<VecEnv::MimicTarget> out;
   std::vector<bool> placed(m.nv, false);
   for (bool progress = true; progress;) {
     progress = false;
     for (int k = 0; k < m.nv; ++k) {
-      const Mimic* mimic = first[k];
-      if (!mimic || placed[k] || (first[mimic->leader_dof] && !placed[mimic->leader_dof])) continue;
+      const Mimic* mimic = m.mimic_of(k);
+      if (!mimic || placed[k] || (m.mimic_of(mimic->leader_dof) && !placed[mimic->leader_dof])) continue;
       out.push_back({q_of(k), q_of(mimic->leader_dof), mimic->multiplier, mimic->offset});
       placed[k] = progress = true;
     }
@@ -50,7 +47,10 @@ VecEnvOptions checked(const Model& model, VecEnvOptions o) {
                                               std::to_string(o.initial_q.size()));
   require(o.initial_v.size() == model.nv, "VecEnv: initial_v expects " + std::to_string(model.nv) + " values, got " +
                                               std::to_string(o.initial_v.size()));
-  for (const auto& entry : {std::pair{&o.initial_q, "initial_q"}, std::pair{&o.initial_v, "initial_v"}}) {
+  require(o.drive_target_q.size() == model.nq, "VecEnv: drive_target_q expects " + std::to_string(model.nq) +
+                                                   " values, got " + std::to_string(o.drive_target_q.size()));
+  for (const auto& entry : {std::pair{&o.initial_q, "initial_q"}, std::pair{&o.initial_v, "initial_v"},
+                            std::pair{&o.drive_target_q, "drive_target_q"}}) {
     const Eigen::VectorXd& values = *entry.first;
     for (Eigen::Index i = 0; i < values.size(); ++i)
       require(std::isfinite(values[i]), [&] {
@@ -58,9 +58,6 @@ VecEnvOptions checked(const Model& model, VecEnvOptions o) {
                number_text(values[i]);
       });
   }
-  require(o.drive_target_q.size() == model.nq, "VecEnv: drive_target_q expects " + std::to_string(model.nq) +
-                                                   " values, got " + std::to_string(o.drive_target_q.size()));
-  require(o.drive_target_q.allFinite(), "VecEnv: drive_target_q must be finite");
   if (o.dofs.empty()) o.dofs = default_dof_settings(model);
   // The torque of every source is an observation.
   o.step.record_applied_torque = true;
@@ -99,6 +96,12 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
     : header_check_(caller),
       options_(checked(model, std::move(options))),
       sim_(model, copies, options_.step, options_.dofs) {
+  const bool mimics_held = sim_.plan()[static_cast<int>(Stage::MimicJoints)].runs;
+  if (mimics_held) {
+    mimic_targets_ = ordered_mimics(model);
+    // the targets of every reset, which the drives hold in the torque modes
+    follow_leaders(options_.drive_target_q.data(), 1, 1);
+  }
   if (options_.action_mode == ActionMode::ActuatorTorque) {
     const std::vector<Actuator>& actuators = options_.step.actuators;
     require(!actuators.empty(), "VecEnv: actuator_torque actions need actuators (StepOptions::actuators is empty)");
@@ -109,15 +112,8 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
   } else {
     // a DOF that follows a mimic tag the step holds takes no action: with
     // position targets its target follows its leader's (follow_leaders)
-    std::vector<bool> follower(model.nv, false);
-    if (sim_.plan()[static_cast<int>(Stage::MimicJoints)].runs) {
-      for (const Mimic& mimic : model.mimics) follower[mimic.dof] = true;
-      mimic_targets_ = ordered_mimics(model);
-      // and the targets of every reset, which Torque mode's drives hold
-      follow_leaders(options_.drive_target_q.data(), 1, 1);
-    }
     for (int k = 0; k < model.nv; ++k)
-      if (!is_free_dof(model, k) && !follower[k]) action_dofs_.push_back(k);
+      if (!is_free_dof(model, k) && !(mimics_held && model.mimic_of(k))) action_dofs_.push_back(k);
     for (int k : action_dofs_)  // the DOF's torque, or the first target coordinate of its joint
       action_field_.push_back(options_.action_mode == ActionMode::Torque ? k : model.body_q_offset[model.dof_body[k]]);
   }

@@ -69,6 +69,12 @@ int Model::joint_index(const std::string& name) const {
 }
 int Model::dof_index(const std::string& name) const { return lookup(dof_by_name, name, "DOF", dof_name); }
 
+const Mimic* Model::mimic_of(int dof) const {
+  for (const Mimic& mimic : mimics)
+    if (mimic.dof == dof) return &mimic;
+  return nullptr;
+}
+
 int Model::articulation_index(const std::string& name) const {
   std::vector<std::string> names;
   for (std::size_t i = 0; i < articulations.size(); ++i) {

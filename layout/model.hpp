@@ -119,6 +119,9 @@ struct Model {
   int dof_index(const std::string& name) const;
   int articulation_index(const std::string& name) const;
 
+  // The first mimic tag DOF `dof` follows, or null.
+  const Mimic* mimic_of(int dof) const;
+
   double total_mass() const;
   // The links gravity is switched off on: each such body's own link (the
   // one it is named after), in body order.

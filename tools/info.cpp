@@ -23,13 +23,6 @@ bool frame_fused(const Model& model, int frame) {
   return body >= 0 && model.body_frame[body] != frame;
 }
 
-// The mimic tag DOF k follows, or none.
-const Mimic* mimic_of(const Model& model, int k) {
-  for (const Mimic& mimic : model.mimics)
-    if (mimic.dof == k) return &mimic;
-  return nullptr;
-}
-
 std::string limit_text(double x) {
   if (std::isinf(x)) return x > 0 ? "inf" : "-inf";
   std::ostringstream s;
@@ -114,7 +107,7 @@ void print_info_text(const LoadedModel& loaded, std::ostream& out) {
   out << "\nDOFs (" << m.nv << "):\n";
   Table dofs({"index", "name", "body", "lower", "upper", "velocity limit", "effort limit", "mimic"});
   for (int d = 0; d < m.nv; ++d) {
-    const Mimic* mimic = mimic_of(m, d);
+    const Mimic* mimic = m.mimic_of(d);
     dofs.add({std::to_string(d), m.dof_name[d], std::to_string(m.dof_body[d]), limit_text(m.dof_lower[d]),
               limit_text(m.dof_upper[d]), limit_text(m.dof_velocity_limit[d]), limit_text(m.dof_effort_limit[d]),
               mimic ? limit_text(mimic->multiplier) + " x " + m.dof_name[mimic->leader_dof] + " + " +
@@ -185,7 +178,7 @@ void print_info_json(const LoadedModel& loaded, std::ostream& out) {
         << ", \"lower\": " << number(m.dof_lower[d]) << ", \"upper\": " << number(m.dof_upper[d])
         << ", \"velocity_limit\": " << number(m.dof_velocity_limit[d])
         << ", \"effort_limit\": " << number(m.dof_effort_limit[d]) << ", \"mimic\": ";
-    if (const Mimic* mimic = mimic_of(m, d))
+    if (const Mimic* mimic = m.mimic_of(d))
       out << "{\"leader\": " << quote(m.dof_name[mimic->leader_dof]) << ", \"multiplier\": " << number(mimic->multiplier)
           << ", \"offset\": " << number(mimic->offset) << "}";
     else
