@@ -325,14 +325,12 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     if (!one_dof) {
       require(d.spring_stiffness == 0, where + "springs act on revolute and prismatic joints only");
       const bool limited = !std::isinf(d.lower) || !std::isinf(d.upper);
-      if (type == JointType::Spherical)
-        require(!limited || d.limit_stiffness > 0,
-                where + "a spherical joint's limits are spring-dampers on its rotation vector: give limit_stiffness > 0 "
-                        "(hard limits act on revolute and prismatic joints only; got " + number_text(d.lower) +
-                    " to " + number_text(d.upper) + ")");
-      else
-        require(!limited, where + "a floating base takes no position limits (got " + number_text(d.lower) + " to " +
-                              number_text(d.upper) + ")");
+      require(!limited || type == JointType::Spherical, where + "a floating base takes no position limits (got " +
+                                                            number_text(d.lower) + " to " + number_text(d.upper) + ")");
+      // the rotation vector is taken the shorter way round: |r_k| <= pi
+      require(type != JointType::Spherical || (d.lower < EIGEN_PI && d.upper > -EIGEN_PI),
+              where + "a spherical joint's limits bound a component of its rotation vector, which lies in [-pi, pi]: " +
+                  number_text(d.lower) + " to " + number_text(d.upper) + " leaves it no range");
       require(d.friction == 0 || type == JointType::Spherical,
               where + "friction acts on revolute, prismatic and spherical joints only");
       require(d.friction == 0 || d.friction_model == FrictionModel::Coulomb,

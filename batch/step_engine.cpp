@@ -124,12 +124,14 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
 
   // Solver rows: the mimic couplings, then DOF by DOF position limit,
   // velocity limit, friction.
+  auto spherical = [&](int k) { return model.body_joint[model.dof_body[k]] == JointType::Spherical; };
   auto q_index_of = [&](int k) {
     const int body = model.dof_body[k];
-    return model.body_q_offset[body] + (k - model.body_dof_offset[body]);
+    return model.body_q_offset[body] + (spherical(k) ? 0 : k - model.body_dof_offset[body]);
   };
   auto add_row = [&](JointRowKind kind, int k, double a, double b) {
     row_specs_.push_back({kind, k, q_index_of(k), columns_.column_of(km_, k), static_cast<T>(a), static_cast<T>(b)});
+    if (spherical(k)) row_specs_.back().rotation_axis = k - model.body_dof_offset[model.dof_body[k]];
   };
   // q_f = m q_l + c as PhysX's q_A + G q_B + offset = 0: A the follower,
   // G = -m, offset -c. First, so that the sweeps take the limits and
@@ -151,9 +153,9 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   for (int k = 0; k < nv; ++k) {
     const DofSettings& d = dofs[k];
     const JointType type = model.body_joint[model.dof_body[k]];
-    const bool one_dof = type == JointType::Revolute || type == JointType::Prismatic;
+    const bool positioned = type == JointType::Revolute || type == JointType::Prismatic || type == JointType::Spherical;
     const bool limited = std::isfinite(d.lower) || std::isfinite(d.upper);
-    const bool hard_limited = plan.hard_limits && one_dof && d.limit_stiffness == 0.0;
+    const bool hard_limited = plan.hard_limits && positioned && d.limit_stiffness == 0.0;
     if (hard_limited && (limited || forced(Stage::HardLimits))) add_row(JointRowKind::PositionLimit, k, d.lower, d.upper);
     if (plan.velocity_limits && (std::isfinite(d.velocity_limit) || forced(Stage::VelocityLimits))) {
       add_row(JointRowKind::VelocityLimit, k, d.velocity_limit, 0);

@@ -76,8 +76,8 @@ struct DofSettings {
   double stribeck_velocity = 0.0;    // Stribeck only [rad/s]; 0: no Stribeck fall-off
   // limits: hard (a one-sided solver row) when limit_stiffness is 0, else a
   // spring-damper acting beyond the range, integrated implicitly. A
-  // spherical joint takes spring-damper limits only, on each component of
-  // its rotation vector log(q) (its DOF k's limits bound component k)
+  // spherical joint's limits bound the components of its rotation vector
+  // log(q) (its DOF k's limits bound component k, within [-pi, pi])
   double lower = -Model::kInfinity;
   double upper = Model::kInfinity;
   double limit_stiffness = 0.0;

@@ -4,8 +4,12 @@
 // joint heads for; +1 for the others); a mimic row on two, J = sigma (e_A +
 // G e_B). D = J Mt^-1 J^T is read off the columns Mt^-1 e_k, computed once
 // per distinct DOF from the tree-sparse factorisation of Mt = M + diag(w).
+// A Spherical joint's DOF k is limited in component k of its rotation vector
+// r = log(q), which moves at that DOF's velocity to first order (r' = w
+// exactly for turns about one axis; docs/conventions.md).
 #pragma once
 
+#include "kernels/configuration.hpp"
 #include "kernels/crba.hpp"
 #include "kernels/row_solver.hpp"
 
@@ -23,13 +27,16 @@ template <class T>
 struct JointRowSpec {
   JointRowKind kind;
   int dof;
-  int q_index;  // the DOF's entry in q (1-DOF joints only carry limits)
+  int q_index;  // the DOF's entry in q; for a Spherical DOF its quaternion's (w, x, y, z)
   int column;  // index of the DOF among the distinct row DOFs
   T a = 0, b = 0;  // PositionLimit: lower, upper; VelocityLimit: v_max; Friction: friction force; Mimic: offset
   // Mimic: the second DOF B of J = e_dof + gear e_B, its entry in q and its
   // column; -1 for the other kinds.
   int dof2 = -1, q_index2 = -1, column2 = -1;
   T gear = 0;
+  // A Spherical DOF's limits: the component of log(q) they bound (0, 1, 2);
+  // -1 for a 1-DOF joint's, whose position is q[q_index].
+  int rotation_axis = -1;
   // VelocityLimit on a DOF with a hard position limit: that row's range
   // (joint_row: the band lets the limit's correction through).
   T range_lower = -std::numeric_limits<T>::infinity(), range_upper = std::numeric_limits<T>::infinity();
@@ -57,6 +64,16 @@ inline L friction_impulse_bound(const JointRowSpec<lane::scalar_t<L>>& spec, con
 template <class T, class L>
 LOCKSTEP_INLINE L joint_row_dofs(const JointRowSpec<T>& spec, const L* x) {
   return spec.dof2 < 0 ? x[spec.dof] : lane::fmadd(L(spec.gear), x[spec.dof2], x[spec.dof]);
+}
+
+// The position a limit row bounds: the DOF's coordinate, or for a Spherical
+// DOF its component of the joint's rotation vector.
+template <class L>
+LOCKSTEP_INLINE L joint_row_position(const JointRowSpec<lane::scalar_t<L>>& spec, const lane::scalar_t<L>* q) {
+  constexpr std::size_t W = lane::width_v<L>;
+  if (spec.rotation_axis < 0) return lane::load<L>(q + spec.q_index * W);
+  const Vec3<L> r = quaternion_log(load_quaternion<L>(q + spec.q_index * W));
+  return spec.rotation_axis == 0 ? r.x : spec.rotation_axis == 1 ? r.y : r.z;
 }
 
 // One joint row of one block, per lane, from q and the free velocity u*.
@@ -97,7 +114,7 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
     case JointRowKind::PositionLimit: {
       // the limit nearer to where the free motion ends the step: a fast
       // joint heading for the far limit of a narrow range meets that one
-      const L qk = lane::load<L>(q + spec.q_index * W);
+      const L qk = joint_row_position<L>(spec, q);
       const L q_free = lane::fmadd(L(dt), u, qk);
       const auto lower = q_free - L(spec.a) < L(spec.b) - q_free;
       row.sigma = lane::select(lower, one, -one);
@@ -114,7 +131,7 @@ inline JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const 
       // not act against a position limit that acts. Only so far, not off: a
       // joint resting on its limit a rounding error past it keeps its
       // velocity limit. Within the range the target is <= 0: no widening.
-      const L qk = lane::load<L>(q + spec.q_index * W), inv_dt(T(1) / dt), rate(erp / dt);
+      const L qk = joint_row_position<L>(spec, q), inv_dt(T(1) / dt), rate(erp / dt);
       const L up = lane::max(zero, positional_target(qk - L(spec.range_lower), inv_dt, rate));
       const L down = lane::max(zero, positional_target(L(spec.range_upper) - qk, inv_dt, rate));
       row.target = -lane::max(L(spec.a), down);
@@ -188,12 +205,11 @@ bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& 
                             const L* v_free, const lane::scalar_t<L>* friction, lane::scalar_t<L> dt,
                             lane::scalar_t<L> erp) {
   using T = lane::scalar_t<L>;
-  constexpr std::size_t W = lane::width_v<L>;
   const L zero(T(0));
   for (const JointRowSpec<T>& spec : specs) {
     L error = zero, impulse_bound = zero;
     if (spec.kind == JointRowKind::PositionLimit) {
-      const L qk = lane::load<L>(q + spec.q_index * W);
+      const L qk = joint_row_position<L>(spec, q);
       error = lane::min(qk - L(spec.a), L(spec.b) - qk);
     } else if (spec.kind == JointRowKind::Friction) {
       impulse_bound = friction_impulse_bound<L>(spec, friction, dt);

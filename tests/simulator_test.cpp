@@ -752,14 +752,13 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
   box_dofs = default_dof_settings(box);
   box_dofs[0].friction = 1.0;
   expect_error_for(box, StepOptions(), box_dofs, "friction acts on revolute, prismatic and spherical joints only");
-  // a hard position limit on a spherical or free joint has no row to act
-  // through: refused, where it was once accepted and ignored (a spherical
-  // joint takes spring-damper limits)
+  // a spherical joint's limits bound its rotation vector, whose components
+  // lie in [-pi, pi]: a range beyond that could never be met
   ball_dofs = default_dof_settings(ball);
-  ball_dofs[2].lower = -0.1, ball_dofs[2].upper = 0.1;
+  ball_dofs[2].lower = 3.2, ball_dofs[2].upper = 4.0;
   expect_error_for(ball, StepOptions(), ball_dofs,
-                   "DOF 2 (arm_joint[2]): a spherical joint's limits are spring-dampers on its rotation vector: give "
-                   "limit_stiffness > 0 (hard limits act on revolute and prismatic joints only; got -0.1 to 0.1)");
+                   "DOF 2 (arm_joint[2]): a spherical joint's limits bound a component of its rotation vector, which "
+                   "lies in [-pi, pi]: 3.2 to 4 leaves it no range");
   box_dofs = default_dof_settings(box);
   box_dofs[3].upper = 1.0;
   expect_error_for(box, StepOptions(), box_dofs, "a floating base takes no position limits (got -inf to 1)");
