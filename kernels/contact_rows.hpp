@@ -183,9 +183,9 @@ L dot_n(const L* a, const L* b, int n) {
 // plus the distance the two shapes may close within the step h at the free
 // velocity u (a bound from their bodies' speeds, so that a fast body meets
 // the row before it passes through: speculative contact), each with its
-// rows' Jacobian, put into the lane's next free slot. A pair whose bounding
-// spheres are farther apart than that in every lane is skipped, and so is
-// a point no lane has. Needs ws.local and ws.world at the step's q;
+// rows' Jacobian, put into the lane's next free slot. A lane takes a
+// pair's points only where the pair's bounding spheres are within that
+// distance; a pair no lane takes is skipped, and so is a point no lane has. Needs ws.local and ws.world at the step's q;
 // overwrites ws.velocity.
 template <class L>
 void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector<ContactPairSpec<lane::scalar_t<L>>>& pairs,
@@ -215,31 +215,38 @@ void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector
   for (const ContactPairSpec<T>& pair : pairs) {
     const L reach = margin + travel(pair.body_b, pair.reach_b) + (pair.ground ? zero : travel(pair.body_a, pair.reach_a));
     // first the bodies' origins, each with its shape's reach, before the
-    // shapes' poses: most pairs of a robot are far apart
+    // shapes' poses: most pairs of a robot are far apart. `near`: the lanes
+    // where neither bound rules the pair out. Only those take its points: a
+    // narrowphase's separation may be a lower bound of the distance (box
+    // against box), so a lane must not take a point its own bounds reject
+    // because another lane of the block kept the pair.
+    lane::mask_t<L> near;
     if (pair.ground) {
-      if (lane::all<L>(spatial::dot(plane_n, origin(pair.body_b)) - plane_d - L(pair.reach_b) > reach)) continue;
+      near = !(spatial::dot(plane_n, origin(pair.body_b)) - plane_d - L(pair.reach_b) > reach);
     } else {
       const Vec3<L> d = spatial::sub(origin(pair.body_b), origin(pair.body_a));
       const L apart = L(pair.reach_a + pair.reach_b) + reach;
-      if (lane::all<L>(spatial::dot(d, d) > apart * apart)) continue;
+      near = !(spatial::dot(d, d) > apart * apart);
     }
+    if (!lane::any<L>(near)) continue;
     const Transform<L> B = shape_pose<L>(ws, pair.body_b, pair.pose_b);
     Transform<L> pose_a;
     const Transform<L>* A = &B;  // the ground's narrowphase reads the plane, not A
     if (pair.ground) {
-      if (lane::all<L>(spatial::dot(plane_n, B.p) - plane_d - L(pair.radius_b) > reach)) continue;
+      near = near && !(spatial::dot(plane_n, B.p) - plane_d - L(pair.radius_b) > reach);
     } else {
       pose_a = shape_pose<L>(ws, pair.body_a, pair.pose_a);
       A = &pose_a;
       const Vec3<L> d = spatial::sub(B.p, A->p);
       const L apart = L(pair.radius_a + pair.radius_b) + reach;
-      if (lane::all<L>(spatial::dot(d, d) > apart * apart)) continue;
+      near = near && !(spatial::dot(d, d) > apart * apart);
     }
+    if (!lane::any<L>(near)) continue;
     collide<L>(pair, plane_n, plane_d, *A, B, s.candidates.data());
     const L mu = pair.ground ? L(T(0.5)) * (L(pair.friction) + ground_friction) : L(pair.friction);
     for (int c = 0; c < pair.candidates; ++c) {
       const ContactCandidate<L>& point = s.candidates[c];
-      const auto active = point.separation < reach;
+      const auto active = near && point.separation < reach;
       if (lane::all<L>(!active)) continue;
       Vec3<L> dirs[3];
       dirs[0] = point.normal;

@@ -207,6 +207,46 @@ TEST_P(ContactDeterminism, RestoredSnapshotReplays) {
   }
 }
 
+// Two free boxes 0.43 m apart in every copy, within the margin (0.3 m) of
+// each other only by the box-box test's separation, a lower bound of their
+// distance (0.25 m), not by their bounding spheres; in one copy of the
+// block the boxes touch. The far copies take no points from the pair the
+// touching copy's block keeps, as alone: once they took the lower bound's
+// points, 4 per copy (contact_rows.hpp, detect_contacts).
+TEST_P(ContactDeterminism, APairKeptForANeighbourGivesACopyNoPointsItsBoundsReject) {
+  ModelBuilder builder;
+  builder.add_articulation(free_shape_spec("a", ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0));
+  builder.add_articulation(free_shape_spec("b", ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0));
+  const Model model = builder.finalize();
+  StepOptions o;
+  o.precision = GetParam().precision;
+  o.solver = GetParam().solver;
+  o.dt = 0.02;
+  o.contacts.margin = 0.3;
+  auto place = [&](Simulator& sim, int c, const Eigen::Vector3d& b, const Eigen::Vector3d& vb) {
+    Eigen::VectorXd q = model.neutral_configuration(), v = Eigen::VectorXd::Zero(model.nv);
+    q.segment<3>(7) = b;
+    v.segment<3>(6) = vb;
+    sim.set_state(c, q, v);
+    sim.set_gravity(c, Eigen::Vector3d::Zero());
+  };
+  const Eigen::Vector3d far(0.45, 0.45, 0.45), towards = -0.5 * far.normalized();
+  const int n = 16;  // one block of float lanes, two of double
+  Simulator alone(model, n, o), beside(model, n, o);
+  for (int c = 0; c < n; ++c) place(alone, c, far, towards), place(beside, c, far, towards);
+  place(beside, 1, Eigen::Vector3d(0.2, 0, 0), Eigen::Vector3d::Zero());  // touching
+  for (int step = 0; step < 6; ++step) {
+    alone.step();
+    beside.step();
+    ASSERT_FALSE(beside.contacts(1).empty()) << "step " << step << ": the touching copy has its points";
+    for (int c = 0; c < n; ++c) {
+      if (c == 1) continue;
+      EXPECT_EQ(beside.contacts(c).size(), alone.contacts(c).size()) << "step " << step << " copy " << c;
+      expect_same(alone, c, beside, c, "step " + std::to_string(step) + " copy " + std::to_string(c));
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(, ContactDeterminism,
                          ::testing::Values(Case{Precision::Float, SolverType::PGS}, Case{Precision::Float, SolverType::TGS},
                                            Case{Precision::Double, SolverType::PGS},
