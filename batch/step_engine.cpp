@@ -614,7 +614,8 @@ void StepEngine<L>::heun_velocity(const BlockInputs<T>& in, const T* tau_ff, con
 
 // Classic RK4 on (q, v) with the joint effects evaluated at every stage
 // (RaiSim: steps 1-4 at the state of the stage), explicitly; positions move
-// on the manifold from q0 by the stage velocities. s.terms ends with the
+// on the manifold from q0 by the stages' slopes in its tangent space (RKMK
+// for the turns: turn_rate_at_start). s.terms ends with the
 // stages' forces averaged by RK4's weights: what acted over the step.
 template <class L>
 void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const JointTermInputs<T>& terms_in,
@@ -646,9 +647,12 @@ void StepEngine<L>::rk4_block(const BlockInputs<T>& in, const T* tau_ff, const J
     for (int k = 0; k < nv; ++k) lane::store(lane::fmadd(L(c), s.qacc[k], s.u0[k]), vs + k * W);
     free_acceleration(qs, vs, h, in, tau_ff, terms_in, JointTerms::AtThisState, s);
     // The positions move with the world velocities of the stages, R_s v_s,
-    // expressed at q0 (turn_free_linear): the velocities themselves are
-    // integrated in body coordinates, where the accelerations are.
+    // expressed at q0 (turn_free_linear), and turn with the slopes of their
+    // rotation vectors from q0 (turn_rate_at_start): the velocities
+    // themselves are integrated in body coordinates, where the
+    // accelerations are.
     turn_free_linear<L>(km_, previous, c, vs, Turn::ToStart);
+    turn_rate_at_start<L>(km_, previous, c, vs);
     for (int k = 0; k < nv; ++k) lane::store(lane::load<L>(vs + k * W), previous + k * W);
     const L w(weights[stage]);
     for (int k = 0; k < nv; ++k) {

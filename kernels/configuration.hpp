@@ -186,6 +186,31 @@ void turn_free_linear(const KernelModel<lane::scalar_t<L>>& km, const lane::scal
   }
 }
 
+// The slope of a turn's coordinates u at q0 exp(u): a Spherical or Free
+// joint at a stage reached by u = step w_p (w_p: the angular part of
+// `previous`, as integrate(q0, previous, step) turned it) that turns at the
+// body-frame angular velocity w moves u at J_r(u)^-1 w = w + (u x w) / 2 +
+// u x (u x w) / 12 + O(|u|^4 |w|), J_r the right Jacobian of SO(3): RK4's
+// stages added up in u (Munthe-Kaas's RKMK; Iserles et al., Acta Numerica
+// 2000, sec. 4.3; the series kept to u^2 keeps order 4). x holds the
+// stages' angular velocities and gets their slopes; other DOFs unchanged.
+template <class L>
+void turn_rate_at_start(const KernelModel<lane::scalar_t<L>>& km, const lane::scalar_t<L>* previous,
+                        lane::scalar_t<L> step, lane::scalar_t<L>* x) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  const L h(step), half(T(0.5)), twelfth(T(1) / T(12));
+  for (int b = 0; b < km.nbody; ++b) {
+    const JointType type = km.body_joint[b];
+    if (type != JointType::Spherical && type != JointType::Free) continue;
+    const int o = (km.body_dof_offset[b] + (type == JointType::Free ? 3 : 0)) * W;
+    const Vec3<L> u = spatial::scale(h, load_vec3<L>(previous + o)), w = load_vec3<L>(x + o);
+    const Vec3<L> uw = spatial::cross(u, w);
+    store_vec3(spatial::add(w, spatial::add(spatial::scale(half, uw), spatial::scale(twelfth, spatial::cross(u, uw)))),
+               x + o);
+  }
+}
+
 // v_out such that integrate(q0, v_out, 1) = q1 (up to round-off): the
 // inverse of integrate on the manifold.
 template <class L>
