@@ -1,8 +1,12 @@
 #include "batch/contact_pairs.hpp"
 
+#include "batch/copy_dynamics.hpp"
 #include "kernels/collision.hpp"
+#include "kernels/contact_rows.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <limits>
 #include <set>
 #include <stdexcept>
 
@@ -147,6 +151,35 @@ class ArticulationFilter {
   std::set<int> world_has_shape_;
 };
 
+// "38 mm", "0.4 mm": a length for messages.
+std::string millimetres(double metres) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.2g mm", metres * 1e3);
+  return text;
+}
+
+// The least separation the narrowphase finds between two moving shapes
+// with their bodies at the given world poses (double, one lane).
+double separation_at(const Side& a0, const Side& b0, const std::vector<Eigen::Isometry3d>& body_pose) {
+  const bool swap = static_cast<int>(b0.cls) < static_cast<int>(a0.cls);
+  const Side& a = swap ? b0 : a0;
+  const Side& b = swap ? a0 : b0;
+  ContactPairSpec<double> spec;
+  spec.kind = kind_of(a.cls, b.cls, b.cylinder);
+  for (int i = 0; i < 3; ++i) spec.size_a[i] = a.side.size[i], spec.size_b[i] = b.side.size[i];
+  auto world = [&](const Side& side) {
+    double flat[12];
+    flatten_transform(side.side.body < 0 ? side.side.pose : body_pose[side.side.body] * side.side.pose, flat);
+    return broadcast_transform<double>(flat);
+  };
+  const Transform<double> A = world(a), B = world(b);
+  std::vector<ContactCandidate<double>> points(pair_candidates(spec.kind));
+  contact_detail::collide<double>(spec, {0.0, 0.0, 1.0}, 0.0, A, B, points.data());
+  double least = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < pair_candidates(spec.kind); ++i) least = std::min(least, points[i].separation);
+  return least;
+}
+
 }  // namespace
 
 ContactPairs build_contact_pairs(const Model& model, const ContactSettings& settings) {
@@ -201,6 +234,7 @@ ContactPairs build_contact_pairs(const Model& model, const ContactSettings& sett
   frame_pairs(settings.disabled_pairs, "disabled_pairs", disabled);
 
   const ArticulationFilter filter(model);
+  std::vector<Eigen::Isometry3d> body_pose;  // at the neutral configuration, once a self pair needs them
   auto self_collides = [&](int art) {
     return art < static_cast<int>(settings.self_collision.size()) && settings.self_collision[art];
   };
@@ -233,10 +267,23 @@ ContactPairs build_contact_pairs(const Model& model, const ContactSettings& sett
       if (touch && a.articulation >= 0 && a.articulation == b.articulation)
         touch = self_collides(a.articulation) &&
                 !filter.joined_without_shapes(a.side.body, b.side.body, a.articulation);
-      if (a.frame >= 0 && b.frame >= 0) {
-        const std::pair<int, int> key = std::minmax(a.frame, b.frame);
-        if (enabled.count(key)) touch = true;
-        if (disabled.count(key)) touch = false;
+      const std::pair<int, int> key = std::minmax(a.frame, b.frame);
+      const bool named = a.frame >= 0 && b.frame >= 0 && (enabled.count(key) || disabled.count(key));
+      if (named) touch = enabled.count(key) && !disabled.count(key);
+      // Links of one robot whose shapes overlap in its neutral pose (a
+      // thigh's box inside the base's) cannot be pushed apart by any
+      // motion of the joints: left out unless named (MoveIt's "default"
+      // collisions), or they would push each other with forces without
+      // bound.
+      if (touch && !named && a.articulation >= 0 && a.articulation == b.articulation) {
+        if (body_pose.empty()) body_pose = CopyDynamics(model, Precision::Double).body_poses(model.neutral_configuration());
+        const double overlap = -separation_at(a, b, body_pose);
+        if (overlap > 0) {
+          touch = false;
+          out.notes.push_back("self-collision: " + describe_shape(model, a.side.shape) + " and " +
+                              describe_shape(model, b.side.shape) + " overlap by " + millimetres(overlap) +
+                              " in the neutral pose, so they are left out (name them in enabled_pairs to keep them)");
+        }
       }
       if (touch)
         add(a, b, average(a.contact.friction, b.contact.friction),
