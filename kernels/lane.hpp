@@ -176,6 +176,10 @@ inline L exp(const L& x) {
 // sin and cos of x together, to about 1 ulp for |x| < 1e4 (joint angles;
 // larger arguments lose accuracy in the Cody-Waite reduction). Cephes'
 // minimax polynomials on [-pi/4, pi/4] after reducing by multiples of pi/2.
+// Where the reduction fails (|x| beyond about 1e7 in float, 1e15 in
+// double, where an ulp of x is a radian or more) its remainder is clamped
+// to the polynomials' interval, so that (s, c) stays on the unit circle:
+// the angle is lost there, but a rotation stays a rotation.
 template <class L>
 inline void sincos(const L& x, L& s, L& c) {
   using T = scalar_t<L>;
@@ -191,6 +195,9 @@ inline void sincos(const L& x, L& s, L& c) {
     r = fnmadd(quadrant, L(7.54978941586159635336e-8), r);
     r = fnmadd(quadrant, L(5.39030285815811905290e-15), r);
   }
+  // pi/4 and a little: a reduction that works never reaches it; NaN passes
+  const L bound(T(0.79));
+  r = select(abs(r) > bound, select(r > L(T(0)), bound, -bound), r);
   const L r2 = r * r;
   L sin_r, cos_r;
   if constexpr (std::is_same_v<T, float>) {

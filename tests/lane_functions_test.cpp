@@ -57,6 +57,48 @@ TEST(LaneFunctions, SincosIsAccurateAndLaneIndependent) {
   check_function<double>(0.1, 3.0, [](double x) { return std::sin(x); }, sin_of, sin_of, 2.0, "sin double");
 }
 
+// Beyond the reduction's range (|x| up to the largest finite value) sin and
+// cos stay a point of the unit circle, the same on both lane types, where
+// they once left it (float: s^2 + c^2 = 2e7 at x = 1e8, inf from 3e12;
+// double: 1.14 at 3e16), and a rotation by a spinning joint's angle with
+// them. Non-finite x gives NaN. Asserted: |s^2 + c^2 - 1| <= 4 eps.
+template <class T>
+void check_sincos_far(const char* name) {
+  using S = lane::simd<T>;
+  constexpr std::size_t W = S::size;
+  alignas(64) T in[W], sines[W], cosines[W];
+  const int top = std::numeric_limits<T>::max_exponent10;
+  for (int decade = 0; decade <= top; ++decade)
+    for (int i = 0; i < 64; ++i) {
+      for (std::size_t j = 0; j < W; ++j) {
+        const T x = std::pow(T(10), T(decade) + T(i * W + j) / T(64 * W));
+        in[j] = std::isfinite(x) ? ((i + j) % 2 ? -x : x) : std::numeric_limits<T>::max();
+      }
+      S s, c;
+      lane::sincos(S::load_aligned(in), s, c);
+      s.store_aligned(sines);
+      c.store_aligned(cosines);
+      for (std::size_t j = 0; j < W; ++j) {
+        T ss, cc;
+        lane::sincos<T>(in[j], ss, cc);
+        ASSERT_EQ(std::memcmp(&ss, &sines[j], sizeof(T)), 0) << name << "(" << in[j] << "): SIMD and scalar differ";
+        ASSERT_EQ(std::memcmp(&cc, &cosines[j], sizeof(T)), 0) << name << "(" << in[j] << "): SIMD and scalar differ";
+        ASSERT_LE(std::abs(ss * ss + cc * cc - T(1)), 4 * std::numeric_limits<T>::epsilon()) << name << "(" << in[j] << ")";
+      }
+    }
+  for (T x : {std::numeric_limits<T>::quiet_NaN(), std::numeric_limits<T>::infinity(),
+              -std::numeric_limits<T>::infinity()}) {
+    T ss, cc;
+    lane::sincos<T>(x, ss, cc);
+    EXPECT_TRUE(std::isnan(ss) && std::isnan(cc)) << name << "(" << x << ")";
+  }
+}
+
+TEST(LaneFunctions, SincosStaysOnTheUnitCircleForAnyArgument) {
+  check_sincos_far<float>("sincos float");
+  check_sincos_far<double>("sincos double");
+}
+
 // atan2 over all four quadrants: arguments uniform in [-10, 10]^2, with
 // one of them scaled down by up to 2^-40 (results near 0 and near +-pi/2)
 // or x within 0.1 % of y (the tan(pi/8) reduction and the pi/4 diagonal).

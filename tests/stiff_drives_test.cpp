@@ -131,7 +131,10 @@ TEST(StiffDrives, Rk4AndTheTrapezoidWarnOfModesTooFastForTheirStep) {
     ASSERT_EQ(warnings.size(), 1u);
     EXPECT_NE(warnings[0].find("RK4 takes drives, springs and damping (link damping too) explicitly"), std::string::npos)
         << warnings[0];
-    EXPECT_EQ(sim.fault(0), Fault::NonFiniteState) << "h " << c.h << ": diverged";
+    // diverged: non-finite, or 6.7e87 rad after 2 s undamped at h = 0.02
+    // (that copy turned non-finite only where the joint's sin and cos once
+    // left the unit circle)
+    EXPECT_FALSE(std::abs(sim.q(0)[0]) < 1e6) << "h " << c.h << ": diverged to " << sim.q(0)[0];
   }
   std::vector<DofSettings> stiff = driven(wheel, DriveType::Force, 1e5);
   stiff[0].drive_damping = 2 * std::sqrt(1e5 * kInertia);
