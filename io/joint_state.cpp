@@ -1,5 +1,6 @@
 #include "io/joint_state.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -39,9 +40,10 @@ int joint_body(const Model& model, const std::string& name, const std::string& w
       throw StateError(where + ": joint \"" + name + "\" is fixed and has no coordinates");
   for (const Articulation& a : model.articulations)
     if (!a.floating_base && name == a.name + "_root")
-      throw StateError(where + ": unknown joint \"" + name + "\": the model is fixed-base; its floating base " +
+      throw StateError(where + ": unknown joint " + json::quote(name) + ": the model is fixed-base; its floating base " +
                        "(this name) exists with --floating-base (in a scene file: \"floating_base\": true)");
-  throw StateError(where + ": unknown joint \"" + name + "\"" + did_you_mean(name, model.joint_name) +
+  // quoted as JSON: a key with control characters (a NUL ended the message)
+  throw StateError(where + ": unknown joint " + json::quote(name) + did_you_mean(name, model.joint_name) +
                    " (run `lockstep info` to list the joints)");
 }
 
@@ -93,7 +95,8 @@ void read_entries(const Model& model, const json::Value& entries, const std::str
   if (!entries.is_object())
     throw StateError(where + ": expected an object keyed by joint name, got " + json::type_name(entries.type));
   for (const auto& [name, value] : entries.object) {
-    const std::string at = where + "." + name;
+    const bool plain = std::none_of(name.begin(), name.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20; });
+    const std::string at = where + "." + (plain ? name : json::quote(name));
     const int body = joint_body(model, name, at);
     const JointType type = model.body_joint[body];
     if (part == Part::Q) read_entry(value, at, type, part, joint_nq(type), precision, out, model.body_q_offset[body]);

@@ -25,6 +25,8 @@
 #include <set>
 #include <thread>
 
+#include <unistd.h>
+
 namespace lockstep {
 
 using namespace rollout_hdf5;
@@ -296,6 +298,10 @@ struct RolloutWriter::Impl {
     if (std::filesystem::exists(there) && !std::filesystem::is_regular_file(there))
       throw RolloutFileError(path + ": is not a regular file (a link, device, FIFO or socket), which the rollout file "
                                     "would replace; give the path of a file");
+    // renamed over, a file is replaced by whoever may write its folder: a
+    // file its user may not write is refused, as writing it would be
+    if (std::filesystem::exists(there) && ::access(path.c_str(), W_OK) != 0)
+      throw RolloutFileError(path + ": cannot replace it: " + std::strerror(errno));
     const std::string creating = path + ".creating";
     // a leftover "<path>.creating" goes first: were it a link, creating the
     // file through it would truncate the link's target

@@ -110,10 +110,14 @@ std::string default_model(std::string& note) {
   return bundled;
 }
 
+// Every item between commas, empty ones too ("1,2," is three, the last
+// empty: std::getline dropped it, and the list was taken as "1,2").
 std::vector<std::string> split(const std::string& list) {
   std::vector<std::string> items;
-  std::stringstream in(list);
-  for (std::string item; std::getline(in, item, ',');) items.push_back(item);
+  std::size_t start = 0;
+  for (std::size_t comma; (comma = list.find(',', start)) != std::string::npos; start = comma + 1)
+    items.push_back(list.substr(start, comma - start));
+  items.push_back(list.substr(start));
   return items;
 }
 

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <exception>
 #include <filesystem>
+#include <new>
 #include <ostream>
 
 #ifndef LOCKSTEP_SOURCE_MODELS_DIR
@@ -141,15 +142,13 @@ ParsedArgs parse_args(const std::vector<std::string>& args, const std::vector<st
   return parsed;
 }
 
+// Decimal only, the whole text: no leading space, no hexadecimal (which
+// std::stod took: --envs 0x10 ran 16 copies).
 double parse_number(const std::string& option, const std::string& text) {
-  std::size_t used = 0;
   double x = 0.0;
-  try {
-    x = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != text.size() || !std::isfinite(x)) throw UsageError(option + " expects a number, not \"" + text + "\"");
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), x, std::chars_format::general);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size() || !std::isfinite(x))
+    throw UsageError(option + " expects a number, not \"" + text + "\"");
   return x;
 }
 
@@ -268,6 +267,10 @@ int main(int argc, char** argv, std::ostream& out, std::ostream& err) {
   } catch (const RolloutFileError& e) {
     err << "lockstep: " << e.what() << "\n";
     return kExitOutput;
+  } catch (const std::bad_alloc&) {
+    // the copies (and a rollout's buffers) grow with --envs
+    err << "lockstep: not enough memory for this run: give fewer --envs\n";
+    return kExitBadInput;
   } catch (const std::exception& e) {
     err << "lockstep: internal error: " << e.what() << "\n";
     return kExitInternal;

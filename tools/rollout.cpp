@@ -200,7 +200,15 @@ int run_rollout(const std::vector<std::string>& args, std::ostream& out) {
     std::fprintf(stderr, "lockstep rollout: warning: %s\n", warning.c_str());
   RolloutInfo info{scene_to_json(scene), scene.model_path, policy_name(config.policy), {}};
   info.extra.push_back({"threads", static_cast<std::int64_t>(threads)});
-  RolloutRecorder recorder(env, config.out, info, config.file);
+  // the writer refuses blocks of steps beyond its memory bound: --envs here
+  auto record = [&] {
+    try {
+      return RolloutRecorder(env, config.out, info, config.file);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError("--envs " + std::to_string(config.envs) + ": " + e.what());
+    }
+  };
+  RolloutRecorder recorder = record();
   if (replacing) std::fprintf(stderr, "lockstep rollout: replacing %s\n", config.out.c_str());
   Policy policy(config.policy, env, scene.env.seed);
 
