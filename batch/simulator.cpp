@@ -327,15 +327,35 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
       const bool limited = !std::isinf(d.lower) || !std::isinf(d.upper);
       require(!limited || type == JointType::Spherical, where + "a floating base takes no position limits (got " +
                                                             number_text(d.lower) + " to " + number_text(d.upper) + ")");
-      // the rotation vector is taken the shorter way round: |r_k| <= pi
-      require(type != JointType::Spherical || (d.lower < EIGEN_PI && d.upper > -EIGEN_PI),
-              where + "a spherical joint's limits bound a component of its rotation vector, which lies in [-pi, pi]: " +
-                  number_text(d.lower) + " to " + number_text(d.upper) + " leaves it no range");
       require(d.friction == 0 || type == JointType::Spherical,
               where + "friction acts on revolute, prismatic and spherical joints only");
       require(d.friction == 0 || d.friction_model == FrictionModel::Coulomb,
               where + "Stribeck friction acts on revolute and prismatic joints only (a spherical joint takes Coulomb)");
     }
+  }
+  // A spherical joint's limits bound the components of its rotation vector
+  // r = log(q), taken the shorter way round: r jumps to the other side
+  // where |r| reaches pi, and a limit there would push the joint by that
+  // jump (an unlimited DOF lets |r| get there). So all three DOFs are
+  // limited on both sides, the box within |r| < pi.
+  for (int b = 0; b < model.nbody; ++b) {
+    if (model.body_joint[b] != JointType::Spherical) continue;
+    const int k0 = model.body_dof_offset[b];
+    bool limited = false, closed = true;
+    double corner = 0;
+    for (int k = k0; k < k0 + 3; ++k) {
+      limited = limited || !std::isinf(dofs[k].lower) || !std::isinf(dofs[k].upper);
+      closed = closed && std::isfinite(dofs[k].lower) && std::isfinite(dofs[k].upper);
+      if (closed) corner += std::pow(std::max(std::abs(dofs[k].lower), std::abs(dofs[k].upper)), 2);
+    }
+    if (!limited) continue;
+    const std::string where = "DOFs " + std::to_string(k0) + "-" + std::to_string(k0 + 2) + " (spherical joint " +
+                              model.joint_name[b] + "): ";
+    require(closed, where + "limits on a spherical joint need all three DOFs limited on both sides: they bound the "
+                            "components of its rotation vector, which jumps where |r| reaches pi");
+    require(std::sqrt(corner) < EIGEN_PI,
+            where + "the limits' box reaches |r| = " + number_text(std::sqrt(corner)) +
+                "; it must stay within pi, where the joint's rotation vector jumps to the other side");
   }
 }
 

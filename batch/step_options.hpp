@@ -77,7 +77,8 @@ struct DofSettings {
   // limits: hard (a one-sided solver row) when limit_stiffness is 0, else a
   // spring-damper acting beyond the range, integrated implicitly. A
   // spherical joint's limits bound the components of its rotation vector
-  // log(q) (its DOF k's limits bound component k, within [-pi, pi])
+  // log(q) (its DOF k's limits bound component k; all three DOFs limited
+  // on both sides, the box within |r| < pi)
   double lower = -Model::kInfinity;
   double upper = Model::kInfinity;
   double limit_stiffness = 0.0;

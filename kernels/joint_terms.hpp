@@ -225,12 +225,17 @@ void joint_term_prepass(const KernelModel<lane::scalar_t<L>>& km, const JointTer
                          passive_implicit);
         if (jm.stribeck) {
           const L coulomb(jm.coulomb[k]), extra(jm.stiction_extra[k]), falloff(jm.falloff_velocity[k]);
-          passive = passive + stribeck_friction(v, coulomb, extra, falloff, L(jm.stribeck_velocity[k]));
-          // below the fall-off velocity the force is the linear ramp -(peak /
-          // falloff) v, a damper: implicit like one, or a light joint
-          // chatters across zero once h peak / (falloff I) passes 2
-          const L ramp_damping = (coulomb + extra) / falloff;
-          passive_implicit = passive_implicit + lane::select(lane::abs(v) < falloff, h * ramp_damping, zero);
+          const L friction = stribeck_friction(v, coulomb, extra, falloff, L(jm.stribeck_velocity[k]));
+          passive = passive + friction;
+          // The force is F(v0), explicit, taken implicitly as the damper of
+          // its secant -F(v0)/v0 (below the fall-off velocity the ramp's
+          // slope, peak / falloff): friction then slows the joint and never
+          // turns it, v1 = v0 I / (I + h c). Explicit, a light joint
+          // chattered across zero once h |F| / I passed |v0|, below the
+          // fall-off (h peak / (falloff I) > 2) and above it alike.
+          const L ramp_damping = (coulomb + extra) / falloff, speed = lane::abs(v);
+          const L secant = lane::select(speed < falloff, ramp_damping, lane::abs(friction) / lane::max(speed, falloff));
+          passive_implicit = lane::fmadd(h, secant, passive_implicit);
         }
       }
       pd_out[k] = pd, pd_implicit_out[k] = pd_implicit, passive_out[k] = passive;

@@ -524,9 +524,9 @@ std::vector<DofSettings> stribeck_dofs(const Model& spinner) {
 
 // The Stribeck force: a linear ramp to the static peak below the fall-off
 // velocity, the Coulomb force plus a Gaussian fall-off of the extra above.
-// The ramp is a damper, (peak / falloff) = 150 N m s here, and taken
-// implicitly like one: the step ends at v1 = v0 / (1 + h 150 / I) with the
-// ramp's force at v1; above it the force is the curve's at v0.
+// It is taken implicitly as the damper of its secant c = |F(v0)| / |v0|
+// (the ramp's slope, peak / falloff = 150 N m s, below the fall-off): the
+// step ends at v1 = v0 / (1 + h c / I) with the force -c v1.
 TEST(Simulator, StribeckFrictionFollowsItsCurve) {
   const Model model = spinner(0.1);
   const std::vector<DofSettings> dofs = stribeck_dofs(model);
@@ -539,15 +539,32 @@ TEST(Simulator, StribeckFrictionFollowsItsCurve) {
     sim.set_state(0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, v));
     sim.step();
     const double speed = std::abs(v);
-    if (speed < 0.01) {
-      const double v1 = v / (1.0 + o.dt * 150.0 / 0.1);
-      EXPECT_NEAR(sim.v(0)[0], v1, 1e-15) << "v = " << v;
-      EXPECT_NEAR(sim.applied_torque(0).passive[0], -150.0 * v1, 1e-12) << "v = " << v;
-      continue;
-    }
-    const double magnitude = 1.0 + 0.5 * std::exp(-std::pow((speed - 0.01) / 0.1, 2));
-    EXPECT_NEAR(sim.applied_torque(0).passive[0], -std::copysign(magnitude, v), 1e-12) << "v = " << v;
+    const double magnitude = speed < 0.01 ? 150.0 * speed : 1.0 + 0.5 * std::exp(-std::pow((speed - 0.01) / 0.1, 2));
+    const double c = magnitude / speed;
+    const double v1 = v / (1.0 + o.dt * c / 0.1);
+    EXPECT_NEAR(sim.v(0)[0], v1, 1e-15) << "v = " << v;
+    EXPECT_NEAR(sim.applied_torque(0).passive[0], -c * v1, 1e-12) << "v = " << v;
   }
+}
+
+// A light joint coasting above the fall-off velocity slows to rest and
+// never turns: the friction's secant damper is implicit. Explicit, F(v0)
+// reversed it within a step (h |F| / I = 2 rad/s on I = 0.001 kg m^2 at
+// dt = 2 ms), and the next step's force pushed it back: v swung between
+// -0.8 and +1.2 rad/s for good, from 0.05.
+TEST(Simulator, StribeckFrictionSlowsALightJointWithoutTurningIt) {
+  const Model model = spinner(0.001);
+  Simulator sim(model, 1, double_options(0.002), stribeck_dofs(model));
+  sim.set_state(0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Constant(1, 0.05));
+  double last = 0.05;
+  for (int i = 0; i < 200; ++i) {
+    sim.step();
+    const double v = sim.v(0)[0];
+    ASSERT_GE(v, 0.0) << "step " << i << ": turned";
+    ASSERT_LE(v, last) << "step " << i << ": sped up";
+    last = v;
+  }
+  EXPECT_LT(last, 1e-6);
 }
 
 // A light joint pushed below its Stribeck friction creeps at the ramp's
@@ -752,13 +769,20 @@ TEST(Simulator, BadOptionsAreRejectedByName) {
   box_dofs = default_dof_settings(box);
   box_dofs[0].friction = 1.0;
   expect_error_for(box, StepOptions(), box_dofs, "friction acts on revolute, prismatic and spherical joints only");
-  // a spherical joint's limits bound its rotation vector, whose components
-  // lie in [-pi, pi]: a range beyond that could never be met
+  // a spherical joint's limits bound its rotation vector, which jumps to
+  // the other side where |r| reaches pi: all three DOFs limited on both
+  // sides, within |r| < pi (with one DOF limited, a spin about another
+  // carried |r| through pi, and the limit pushed the joint by the jump:
+  // energy 0.24 -> 1.07 J)
   ball_dofs = default_dof_settings(ball);
-  ball_dofs[2].lower = 3.2, ball_dofs[2].upper = 4.0;
+  ball_dofs[2].lower = -0.1, ball_dofs[2].upper = 0.1;
   expect_error_for(ball, StepOptions(), ball_dofs,
-                   "DOF 2 (arm_joint[2]): a spherical joint's limits bound a component of its rotation vector, which "
-                   "lies in [-pi, pi]: 3.2 to 4 leaves it no range");
+                   "DOFs 0-2 (spherical joint arm_joint): limits on a spherical joint need all three DOFs limited on "
+                   "both sides");
+  for (DofSettings& d : ball_dofs) d.lower = -2.0, d.upper = 2.0;
+  expect_error_for(ball, StepOptions(), ball_dofs,
+                   "DOFs 0-2 (spherical joint arm_joint): the limits' box reaches |r| = 3.4641016151377544; it must "
+                   "stay within pi");
   box_dofs = default_dof_settings(box);
   box_dofs[3].upper = 1.0;
   expect_error_for(box, StepOptions(), box_dofs, "a floating base takes no position limits (got -inf to 1)");

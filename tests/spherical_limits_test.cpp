@@ -76,8 +76,8 @@ TEST(SphericalLimits, AJointPushedAgainstItsLimitsRestsWhereTheSpringsBalanceThe
   const Model model = ball_joint();
   std::vector<DofSettings> dofs = default_dof_settings(model);
   for (DofSettings& d : dofs) d.limit_stiffness = 100.0, d.limit_damping = 0.5, d.damping = 0.05;
-  dofs[0].lower = -0.2;  // x pushed below its lower limit
-  dofs[1].upper = 0.25;  // y above its upper one
+  dofs[0].lower = -0.2, dofs[0].upper = 1.0;   // x pushed below its lower limit
+  dofs[1].lower = -1.0, dofs[1].upper = 0.25;  // y above its upper one
   dofs[2].lower = dofs[2].upper = 0.0;  // z held at 0 (free, the turns about x and y would carry it along)
   Simulator sim(model, 1, double_step(), dofs);
   const Eigen::Vector3d torque(-0.4, 0.6, 0.0);
@@ -136,7 +136,7 @@ TEST(SphericalLimits, ASwingIntoAStiffLimitStopsAtItInEveryLane) {
 TEST(SphericalLimits, AJointPushedAgainstHardLimitsRestsOnThem) {
   const Model model = ball_joint();
   std::vector<DofSettings> dofs = default_dof_settings(model);
-  for (DofSettings& d : dofs) d.damping = 0.5;
+  for (DofSettings& d : dofs) d.damping = 0.5, d.lower = -1.0, d.upper = 1.0;
   dofs[0].lower = -0.2;  // x pushed below its lower limit
   dofs[1].upper = 0.25;  // y above its upper one
   const Eigen::Vector3d torque(-0.4, 0.6, 0.0);
@@ -148,7 +148,7 @@ TEST(SphericalLimits, AJointPushedAgainstHardLimitsRestsOnThem) {
       o.solver = solver;
       o.record_applied_torque = true;
       Simulator sim(model, 1, o, dofs);
-      EXPECT_NE(sim.describe_plan().find("hard limits: runs (2 DOFs"), std::string::npos) << sim.describe_plan();
+      EXPECT_NE(sim.describe_plan().find("hard limits: runs (3 DOFs"), std::string::npos) << sim.describe_plan();
       sim.set_torque(0, torque);
       sim.step(5000);  // 10 s
       const Eigen::Vector3d r = rotation_vector(sim.q(0));
