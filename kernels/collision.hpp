@@ -55,7 +55,8 @@ namespace collision_detail {
 
 // Thresholds by precision.
 //   tiny       a length below it is zero: its direction is undefined.
-//   parallel   capsule-capsule: axes with sin(angle) below it are parallel.
+//   parallel   capsule-capsule, capsule-box along an edge: axes with
+//              sin(angle) below it are parallel.
 //   edge_axis  box-box: edge pairs with |ea x eb| below it give no axis.
 //   relative   box-box: tie and clipping tolerances, times the box sizes;
 //              ball pairs: centres closer than it times ra + rb coincide.
@@ -451,26 +452,45 @@ void collide_capsule_box(const Transform<L>& A, const L& ra, const L& la, const 
     return {sep, n, ball_point(axpy(s, za, A.p), ra, n, sep)};
   };
 
-  // The face nearest candidate 0's normal, and the segment's part over it.
-  const Vec3<L> m = box_point_local(h, axpy(best_s, a, c)).normal;
+  // The face nearest candidate 0's normal, and the segment's part over it;
+  // where candidate 0's nearest box point is on an edge (the segment's
+  // point outside the box's slabs along two axes), the segment's part
+  // along that edge: a capsule lying along an edge (in a groove between
+  // two boxes) touches it along a line, and took one point at an end,
+  // which moved to the other end every step as it rocked.
+  const Vec3<L> best = axpy(best_s, a, c);
+  const Vec3<L> m = box_point_local(h, best).normal;
   const L m0 = lane::abs(m.x), m1 = lane::abs(m.y), m2 = lane::abs(m.z);
   const auto face_y = m1 > m0, face_z = m2 > lane::max(m0, m1);
   const lane::mask_t<L> face[3] = {!face_y && !face_z, face_y && !face_z, face_z};
+  const lane::mask_t<L> outside[3] = {lane::abs(best.x) > hs[0], lane::abs(best.y) > hs[1], lane::abs(best.z) > hs[2]};
+  const auto on_edge = (outside[0] && outside[1] && !outside[2]) || (outside[0] && !outside[1] && outside[2]) ||
+                       (!outside[0] && outside[1] && outside[2]);
   L lo = -la, hi = la;
-  for (int i = 0; i < 3; ++i) {  // s with |c_i + s a_i| <= h_i
+  for (int i = 0; i < 3; ++i) {  // s with |c_i + s a_i| <= h_i, on the face's two axes or the edge's one
     const auto moving = lane::abs(as[i]) > tiny<L>();
     const L inv = one / lane::select(moving, as[i], one);
     const L s1 = (-hs[i] - cs[i]) * inv, s2 = (hs[i] - cs[i]) * inv;
     const auto within = lane::abs(cs[i]) <= hs[i];
     const L lo_i = lane::select(moving, lane::min(s1, s2), lane::select(within, -infinity<L>(), infinity<L>()));
     const L hi_i = lane::select(moving, lane::max(s1, s2), lane::select(within, infinity<L>(), -infinity<L>()));
-    lo = lane::select(face[i], lo, lane::max(lo, lo_i));
-    hi = lane::select(face[i], hi, lane::min(hi, hi_i));
+    const auto constrained = (on_edge && !outside[i]) || (!on_edge && !face[i]);
+    lo = lane::select(constrained, lane::max(lo, lo_i), lo);
+    hi = lane::select(constrained, lane::min(hi, hi_i), hi);
   }
   const auto over_face = lo <= hi;
   const L lo_c = lane::clamp(lo, -la, la), hi_c = lane::clamp(hi, -la, la);
   const L dup = k<L>(Tolerances<T>::duplicate) * la;
-  const auto inside_interval = over_face && (best_s > lo_c + dup) && (best_s < hi_c - dup);
+  // Over a face the distance is linear in s, least at an end of the part
+  // (candidate 0 then repeats one of the two); along an edge it is too
+  // where the segment is parallel to the edge (sin(angle) below
+  // `parallel`: the ends then stand for the line, and a third point
+  // between them came and went with the capsule's slightest turn), and
+  // otherwise least between the ends, where candidate 0 stays.
+  L edge_sin2 = zero;  // sin^2 of the angle between the segment and the edge
+  for (int i = 0; i < 3; ++i) edge_sin2 = edge_sin2 + lane::select(outside[i], as[i] * as[i], zero);
+  const auto linear = !on_edge || edge_sin2 < k<L>(Tolerances<T>::parallel * Tolerances<T>::parallel);
+  const auto inside_interval = over_face && linear && (best_s > lo_c + dup) && (best_s < hi_c - dup);
   out[0] = only_where(!(inside_interval && (best_g > zero)), contact_at(best_s));
   out[1] = only_where(over_face && (lane::abs(lo_c - best_s) > dup), contact_at(lo_c));
   out[2] = only_where(over_face && (lane::abs(hi_c - best_s) > dup) && (hi_c - lo_c > dup), contact_at(hi_c));

@@ -349,6 +349,20 @@ void capsule_box_cases() {
       if (out[i].separation < out[least].separation) least = i;
     expect_candidate(out[least], D - r, kG * -perp, world(E + perp * ((D - r) / 2)), "across the edge");
   }
+  // Along the edge x = 1, z = 0.5 of a box (1 x 1 x 0.5), just touching it
+  // from outside both faces: a line contact, two points at the capsule's
+  // ends (it once got one, at whichever end tied first).
+  {
+    const V3 h(1, 1, 0.5), n = V3(-1, 0, -1).normalized();
+    const M3 along_y = kG * rot(V3::UnitX(), -kPi / 2);
+    const double r = 0.1, gap = 0.002;
+    collide_capsule_box<T>(pose<T>(along_y, world(V3(1, 0, 0.5) - (r + gap) * n)), T(r), T(0.5), pose<T>(kG, kShift),
+                           T(h.x()), T(h.y()), T(h.z()), out);
+    const auto on = existing_along(out, kCapsuleBoxCandidates, kG * V3::UnitY());
+    ASSERT_EQ(on.size(), 2u);
+    expect_candidate(on[0], gap, kG * n, world(V3(1, -0.5, 0.5) - n * (gap / 2)), "along the edge, end -y");
+    expect_candidate(on[1], gap, kG * n, world(V3(1, 0.5, 0.5) - n * (gap / 2)), "along the edge, end +y");
+  }
   // Upright on the top face, 0.01 deep: the bottom end only; the top end is
   // the other candidate over the face, 2 l higher.
   {
