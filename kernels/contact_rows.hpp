@@ -185,8 +185,8 @@ L dot_n(const L* a, const L* b, int n) {
 // the row before it passes through: speculative contact), each with its
 // rows' Jacobian, put into the lane's next free slot. A lane takes a
 // pair's points only where the pair's bounding spheres are within that
-// distance; a pair no lane takes is skipped, and so is a point no lane has. Needs ws.local and ws.world at the step's q;
-// overwrites ws.velocity.
+// distance; a pair no lane takes is skipped, and so is a point no lane
+// has. Needs ws.local and ws.world at the step's q; overwrites ws.velocity.
 template <class L>
 void detect_contacts(const KernelModel<lane::scalar_t<L>>& km, const std::vector<ContactPairSpec<lane::scalar_t<L>>>& pairs,
                      const ContactParams<lane::scalar_t<L>>& p, const lane::scalar_t<L>* u, lane::scalar_t<L> h,
