@@ -447,12 +447,17 @@ Simulator::~Simulator() = default;
 Simulator::Simulator(Simulator&&) noexcept = default;
 Simulator& Simulator::operator=(Simulator&&) noexcept = default;
 
-int Simulator::copies() const { return engine_->copies(); }
-void Simulator::set_profiling(bool on) { engine_->set_profiling(on); }
-StepProfile Simulator::profile() const { return engine_->profile(); }
-int Simulator::row_count() const { return engine_->rows(); }
+Simulator::Engine& Simulator::engine() const {
+  if (!engine_) throw std::logic_error("Simulator: used after it was moved from (assign another to it first)");
+  return *engine_;
+}
+
+int Simulator::copies() const { return engine().copies(); }
+void Simulator::set_profiling(bool on) { engine().set_profiling(on); }
+StepProfile Simulator::profile() const { return engine().profile(); }
+int Simulator::row_count() const { return engine().rows(); }
 std::size_t Simulator::bytes_per_copy() const {
-  return engine_->bytes_per_copy() + sizeof(own_inertia_bodies_[0]) + sizeof(own_joint_parameters_[0]);
+  return engine().bytes_per_copy() + sizeof(own_inertia_bodies_[0]) + sizeof(own_joint_parameters_[0]);
 }
 
 void Simulator::make_plan() const {
@@ -604,7 +609,7 @@ std::string Simulator::unenforced_mimics() const {
 void Simulator::refresh_plan() const {
   if (!plan_stale_) return;
   make_plan();
-  engine_->set_plan(step_plan());
+  engine().set_plan(step_plan());
   plan_stale_ = false;
 }
 
@@ -623,7 +628,7 @@ void Simulator::step(int n) {
   require(n >= 0, [&] { return "Simulator::step: the number of steps must be >= 0, got " + std::to_string(n); });
   if (n == 0) return;
   refresh_plan();
-  engine_->step(n, options_.substeps, options_.dt);
+  engine().step(n, options_.substeps, options_.dt);
   for (int i = 0; i < n; ++i) time_ += options_.dt;  // summed as n calls would, not n * dt
 }
 
@@ -638,6 +643,7 @@ StepBatch<T>& Simulator::batch() {
 
 template <class T>
 const StepBatch<T>& Simulator::batch() const {
+  engine();  // throws once moved from: the batch pointers went with the engine
   const StepBatch<T>* b;
   if constexpr (std::is_same_v<T, float>) b = float_batch_;
   else b = double_batch_;

@@ -214,6 +214,8 @@ class Simulator {
             HeaderBuild caller = {});
   Simulator(Model&&, int, const StepOptions& = {}, std::vector<DofSettings> = {}, HeaderBuild = {}) = delete;
   ~Simulator();
+  // A simulator moved from throws std::logic_error from its calls until
+  // another is assigned to it (a VecEnv moved from, likewise).
   Simulator(Simulator&&) noexcept;
   Simulator& operator=(Simulator&&) noexcept;
 
@@ -481,7 +483,10 @@ class Simulator {
   Eigen::VectorXd model_inertia_;     // BatchState::model_inertia_params
   JointParameters joint_parameters_;  // scene_joint_parameters
   Eigen::VectorXd configuration_;  // set_state's normalised q, kept so that a reset allocates nothing
-  std::unique_ptr<Engine> engine_;
+  std::unique_ptr<Engine> engine_;  // null once moved from
+  // The engine; throws std::logic_error once the simulator was moved from
+  // (a clear error where using it dereferenced null).
+  Engine& engine() const;
   mutable std::unique_ptr<MotionScratch> motion_scratch_;
   // The engine's batch, in the precision it runs (the other is null): the
   // per-copy accessors reach it without a cast.

@@ -197,7 +197,8 @@ class RolloutReader {
   std::size_t element_count(const std::string& name, std::optional<StepRange> range) const;
   void read_into(const std::string& name, ElementType memory_type, std::optional<StepRange> range, void* out) const;
   struct Impl;
-  std::unique_ptr<Impl> impl_;
+  std::unique_ptr<Impl> impl_;  // null once moved from
+  Impl& impl() const;  // throws std::logic_error once moved from
 };
 
 }  // namespace lockstep

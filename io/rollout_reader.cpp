@@ -125,30 +125,35 @@ RolloutReader::~RolloutReader() = default;
 RolloutReader::RolloutReader(RolloutReader&&) noexcept = default;
 RolloutReader& RolloutReader::operator=(RolloutReader&&) noexcept = default;
 
-bool RolloutReader::complete() const { return impl_->complete; }
-std::int64_t RolloutReader::steps() const { return impl_->steps; }
-std::vector<std::string> RolloutReader::datasets() const { return impl_->names; }
-bool RolloutReader::is_step_dataset(const std::string& name) const { return impl_->find(name).step; }
-ElementType RolloutReader::type(const std::string& name) const { return impl_->find(name).type; }
-std::string RolloutReader::description(const std::string& name) const { return impl_->find(name).description; }
+RolloutReader::Impl& RolloutReader::impl() const {
+  if (!impl_) throw std::logic_error("RolloutReader: used after it was moved from (assign another to it first)");
+  return *impl_;
+}
+
+bool RolloutReader::complete() const { return impl().complete; }
+std::int64_t RolloutReader::steps() const { return impl().steps; }
+std::vector<std::string> RolloutReader::datasets() const { return impl().names; }
+bool RolloutReader::is_step_dataset(const std::string& name) const { return impl().find(name).step; }
+ElementType RolloutReader::type(const std::string& name) const { return impl().find(name).type; }
+std::string RolloutReader::description(const std::string& name) const { return impl().find(name).description; }
 
 std::vector<std::size_t> RolloutReader::shape(const std::string& name) const {
-  const DatasetInfo& info = impl_->find(name);
+  const DatasetInfo& info = impl().find(name);
   std::vector<std::size_t> shape(info.extent.begin(), info.extent.end());
-  if (info.step) shape[0] = static_cast<std::size_t>(impl_->steps);
+  if (info.step) shape[0] = static_cast<std::size_t>(impl().steps);
   return shape;
 }
 
 bool RolloutReader::has_attribute(const std::string& name) const {
   const Hdf5Lock lock = lock_hdf5();
-  return rollout_hdf5::has_attribute(impl_->file.get(), name, impl_->path);
+  return rollout_hdf5::has_attribute(impl().file.get(), name, impl().path);
 }
 
 AttributeValue RolloutReader::attribute(const std::string& name) const {
   const Hdf5Lock lock = lock_hdf5();
-  if (!rollout_hdf5::has_attribute(impl_->file.get(), name, impl_->path))
-    throw std::invalid_argument(impl_->path + ": no attribute '" + name + "'");
-  return read_attribute(impl_->file.get(), name, impl_->path);
+  if (!rollout_hdf5::has_attribute(impl().file.get(), name, impl().path))
+    throw std::invalid_argument(impl().path + ": no attribute '" + name + "'");
+  return read_attribute(impl().file.get(), name, impl().path);
 }
 
 std::vector<double> RolloutReader::read(const std::string& name) const {
@@ -165,26 +170,26 @@ std::vector<double> RolloutReader::read(const std::string& name, std::int64_t t0
 }
 
 void RolloutReader::check_stored_type(const std::string& name, ElementType type) const {
-  const ElementType stored = impl_->find(name).type;
+  const ElementType stored = impl().find(name).type;
   if (stored != type)
-    throw std::invalid_argument(impl_->path + ": dataset '" + name + "' holds " + element_type_name(stored) +
+    throw std::invalid_argument(impl().path + ": dataset '" + name + "' holds " + element_type_name(stored) +
                                 ", not " + element_type_name(type));
 }
 
 std::size_t RolloutReader::element_count(const std::string& name, std::optional<StepRange> range) const {
-  const DatasetInfo& info = impl_->find(name);
+  const DatasetInfo& info = impl().find(name);
   std::size_t count = 1;
   for (std::size_t d = info.step ? 1 : 0; d < info.extent.size(); ++d) count *= info.extent[d];
   if (!info.step) {
     if (range)
-      throw std::invalid_argument(impl_->path + ": dataset '" + name + "' is static: it has no steps to select");
+      throw std::invalid_argument(impl().path + ": dataset '" + name + "' is static: it has no steps to select");
     return count;
   }
-  const StepRange steps = range.value_or(StepRange{0, impl_->steps});
-  if (steps.begin < 0 || steps.begin > steps.end || steps.end > impl_->steps)
-    throw std::invalid_argument(impl_->path + ": steps [" + std::to_string(steps.begin) + ", " +
+  const StepRange steps = range.value_or(StepRange{0, impl().steps});
+  if (steps.begin < 0 || steps.begin > steps.end || steps.end > impl().steps)
+    throw std::invalid_argument(impl().path + ": steps [" + std::to_string(steps.begin) + ", " +
                                 std::to_string(steps.end) + ") of dataset '" + name + "' are not within [0, " +
-                                std::to_string(impl_->steps) + ")");
+                                std::to_string(impl().steps) + ")");
   return count * static_cast<std::size_t>(steps.end - steps.begin);
 }
 
@@ -193,12 +198,12 @@ void RolloutReader::read_into(const std::string& name, ElementType memory, std::
   if (element_count(name, range) == 0) return;  // also checks the range
   const Hdf5Lock lock = lock_hdf5();
   const std::string what = "cannot read dataset '" + name + "'";
-  const std::string& path = impl_->path;
-  const DatasetInfo& info = impl_->find(name);
+  const std::string& path = impl().path;
+  const DatasetInfo& info = impl().find(name);
   const Handle file_space = checked_handle(H5Dget_space(info.dataset.get()), H5Sclose, path, what);
   Handle memory_space = checked_handle(H5Scopy(file_space.get()), H5Sclose, path, what);
   if (info.step) {
-    const StepRange steps = range.value_or(StepRange{0, impl_->steps});
+    const StepRange steps = range.value_or(StepRange{0, impl().steps});
     std::vector<hsize_t> start(info.extent.size(), 0), count = info.extent;
     start[0] = static_cast<hsize_t>(steps.begin);
     count[0] = static_cast<hsize_t>(steps.end - steps.begin);

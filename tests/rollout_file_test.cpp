@@ -148,6 +148,23 @@ void expect_sample_values(const RolloutReader& reader, std::int64_t t0, std::int
   expect_values(reader, "tick", t0, t1, tick_value);
 }
 
+// A reader moved from is refused by name (its calls dereferenced null).
+TEST(RolloutFile, AMovedFromReaderIsRefused) {
+  const TempDir dir;
+  const std::string path = dir.file("moved.h5");
+  write_sample(path, 3, RolloutFileOptions());
+  RolloutReader reader(path);
+  const RolloutReader taken(std::move(reader));
+  EXPECT_EQ(taken.steps(), 3);
+  try {
+    (void)reader.steps();
+    ADD_FAILURE() << "a moved-from reader was used";
+  } catch (const std::logic_error& e) {
+    EXPECT_NE(std::string(e.what()).find("RolloutReader: used after it was moved from"), std::string::npos)
+        << e.what();
+  }
+}
+
 // Round trips ----------------------------------------------------------------------
 
 TEST(RolloutFile, RoundTripsEveryElementTypeBitForBit) {

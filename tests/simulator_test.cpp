@@ -5,6 +5,7 @@
 #include "tests/sim_support.hpp"
 
 #include <cmath>
+#include <functional>
 
 namespace lockstep {
 namespace {
@@ -903,6 +904,26 @@ TEST(Simulator, PlanNamesPerCopySettersAsTheReason) {
 // a point mass) and ones whose off-diagonal entries outweigh the diagonal.
 // Code compiled with other SIMD widths than the library (another -march)
 // is refused at construction, before anything is built.
+// A Simulator moved from is refused by name, where its calls dereferenced
+// a null engine (copies(), q(), step() crashed); assigned anew, it works.
+TEST(Simulator, AMovedFromSimulatorIsRefusedUntilAssigned) {
+  const Model model = spinner(0.1);
+  Simulator a(model, 3, double_options(0.01));
+  Simulator b(std::move(a));
+  EXPECT_EQ(b.copies(), 3);
+  for (const std::function<void()>& use : std::vector<std::function<void()>>{
+           [&] { (void)a.copies(); }, [&] { (void)a.q(0); }, [&] { a.step(); }, [&] { (void)a.energy(0); }})
+    try {
+      use();
+      ADD_FAILURE() << "a moved-from simulator was used";
+    } catch (const std::logic_error& e) {
+      EXPECT_NE(std::string(e.what()).find("Simulator: used after it was moved from"), std::string::npos) << e.what();
+    }
+  a = Simulator(model, 2, double_options(0.01));
+  a.step();
+  EXPECT_EQ(a.copies(), 2);
+}
+
 TEST(Simulator, CodeCompiledForOtherLanesIsRefused) {
   const Model model = test::rod_chain({1.0}, 0.5);
   const HeaderBuild own;
