@@ -837,12 +837,47 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
             "restore: the snapshot's applied torques do not match this simulator's record_applied_torque");
     require(s.recorded_motion.size() == packed_size(recorded_motion(b)),
             "restore: the snapshot's recorded motion does not match this simulator's record_motion");
-    // what set_joint_damping and set_armature would refuse here (a snapshot
-    // of a simulator without the momentum projection)
-    check_free_of_floating_bases(packed_entries(s.parameters, copy_parameters(b), &b.joint_damping),
-                                 "restore: the snapshot's joint damping");
-    check_free_of_floating_bases(packed_entries(s.parameters, copy_parameters(b), &b.armature),
-                                 "restore: the snapshot's armature");
+    // What the setters would refuse, refused here too: a snapshot may be
+    // put together by hand (scene_key 0) or come from a simulator without
+    // the momentum projection, and its values index arrays (contact ids)
+    // or divide (masses) in the step and the readouts.
+    auto entries = [&](const auto* array) { return packed_entries(s.parameters, copy_parameters(b), array); };
+    const std::pair<const std::decay_t<decltype(b.drive_stiffness)>*, const char*> per_dof[] = {
+        {&b.drive_stiffness, "restore: the snapshot's drive stiffness"},
+        {&b.drive_damping, "restore: the snapshot's drive damping"},
+        {&b.joint_damping, "restore: the snapshot's joint damping"},
+        {&b.armature, "restore: the snapshot's armature"},
+        {&b.joint_friction, "restore: the snapshot's joint friction"}};
+    for (const auto& [array, what] : per_dof) check_per_dof(entries(array), what);
+    check_free_of_floating_bases(entries(&b.joint_damping), "restore: the snapshot's joint damping");
+    check_free_of_floating_bases(entries(&b.armature), "restore: the snapshot's armature");
+    const Eigen::VectorXd inertia = entries(&b.state.inertia);
+    constexpr int n = BatchState<double>::kInertiaParams;  // mass, COM (3), xx yy zz xy xz yz
+    for (int body = 0; body < model_->nbody; ++body) {
+      const Eigen::Matrix<double, n, 1> x = inertia.segment<n>(n * body);
+      Eigen::Matrix3d I;
+      I << x[4], x[7], x[8], x[7], x[5], x[9], x[8], x[9], x[6];
+      require(all_finite_in(options_.precision, x) && x[0] >= 0 && symmetric_positive_semidefinite(I), [&] {
+        return "restore: the snapshot's body " + std::to_string(body) + " (" +
+               model_->frame_name[model_->body_frame[body]] +
+               ") needs a mass >= 0 and a symmetric positive semidefinite inertia, finite";
+      });
+    }
+    const double fault = entries(&b.fault)[0];
+    require(fault >= 0 && fault <= static_cast<double>(Fault::NonFiniteState) && fault == std::floor(fault),
+            "restore: the snapshot's fault code " + number_text(fault) + " is none of Fault's values");
+    // each contact slot holds a candidate of this scene's pairs, or none
+    // (-1) after the last one used
+    bool ended = false;
+    for (Eigen::Index i = 0; i < s.contact_id.size(); ++i) {
+      const double id = s.contact_id[i];
+      const bool none = id == -1;
+      require((none || (id >= 0 && id < pairs_.candidates && id == std::floor(id))) && !(ended && !none), [&] {
+        return "restore: the snapshot's contact slot " + std::to_string(i) + " holds " + number_text(id) +
+               ", not a candidate of this scene's " + std::to_string(pairs_.candidates) + " (or -1 after the last)";
+      });
+      ended = ended || none;
+    }
     unpack(s.parameters, copy, copy_parameters(b));
     unpack(s.contact_report, copy, contact_report(b));
     unpack(s.applied_torque, copy, applied_torque_report(b));

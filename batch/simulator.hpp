@@ -263,7 +263,11 @@ class Simulator {
   void set_state(int copy, const Eigen::VectorXd& q, const Eigen::VectorXd& v);
   void set_state_all(const Eigen::VectorXd& q, const Eigen::VectorXd& v);
   CopySnapshot snapshot(int copy) const;
-  void restore(int copy, const CopySnapshot& snapshot);  // throws on a snapshot of another scene
+  // Throws std::invalid_argument, changing nothing, on a snapshot of another
+  // scene, or with values the setters refuse (negative masses or gains, a
+  // non-positive-semidefinite inertia, a contact slot holding no candidate
+  // of this scene, a fault code that is no Fault).
+  void restore(int copy, const CopySnapshot& snapshot);
 
   // Inputs of one copy; they persist until changed.
   void set_torque(int copy, const Eigen::VectorXd& tau_ff);                     // (nv) feedforward

@@ -2,7 +2,7 @@
 // per-source applied torque against the equation of motion, the stage plan,
 // and the errors for bad options.
 #include "batch/vec_env.hpp"
-#include "tests/sim_support.hpp"
+#include "tests/contact_support.hpp"
 
 #include <cmath>
 #include <functional>
@@ -591,6 +591,74 @@ TEST(Simulator, StribeckFrictionHoldsALightJointAtItsCreep) {
 // names), it is refused; into one built alike, in the other precision and
 // with more copies, it is taken; a snapshot put together by hand
 // (scene_key 0) is not checked.
+// restore refuses what the setters refuse, naming it: a contact slot that
+// holds no candidate of the scene (the next contacts() indexed the pairs
+// with it and crashed), a slot used after an empty one, a negative mass or
+// drive stiffness, a fault code that is no Fault. The copy keeps its state.
+TEST(Simulator, RestoreRefusesValuesTheSettersRefuse) {
+  const Model ball = test::single_body(ShapeType::Box, Eigen::Vector3d::Constant(0.1), 1.0);
+  StepOptions o = double_options(0.002);
+  o.contacts.ground = true;
+  Simulator sim(ball, 2, o);
+  Eigen::VectorXd q = ball.neutral_configuration();
+  q[2] = 0.1;
+  sim.set_state(0, q, Eigen::VectorXd::Zero(6));
+  sim.set_body_inertia(0, 0, 7.25, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity() * 0.05);
+  sim.step(5);
+  ASSERT_GE(sim.contacts(0).size(), 2u);
+  const CopySnapshot good = sim.snapshot(0);
+  auto index_of = [](const Eigen::VectorXd& x, double value) {
+    for (Eigen::Index i = 0; i < x.size(); ++i)
+      if (x[i] == value) return i;
+    return Eigen::Index(-1);
+  };
+  const CopySnapshot untouched = sim.snapshot(1);
+  auto expect_refused = [&](const CopySnapshot& bad, const std::string& message) {
+    try {
+      sim.restore(1, bad);
+      ADD_FAILURE() << "restored: " << message;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+    const CopySnapshot after = sim.snapshot(1);
+    EXPECT_TRUE(after.parameters == untouched.parameters && after.contact_id == untouched.contact_id &&
+                after.q == untouched.q)
+        << message << ": the copy changed";
+  };
+  CopySnapshot bad = good;
+  bad.contact_id[0] = 1e6;
+  expect_refused(bad, "restore: the snapshot's contact slot 0 holds 1e+06, not a candidate of this scene's 8");
+  bad = good;
+  bad.contact_id[0] = -1;
+  expect_refused(bad, "restore: the snapshot's contact slot 1 holds");
+  bad = good;
+  const Eigen::Index mass = index_of(good.parameters, 7.25);
+  ASSERT_GE(mass, 0);
+  bad.parameters[mass] = -1;
+  expect_refused(bad, "restore: the snapshot's body 0 (body) needs a mass >= 0");
+  Simulator faulted(ball, 1, o);
+  const CopySnapshot before = faulted.snapshot(0);
+  faulted.set_gravity(0, Eigen::Vector3d::Constant(std::nan("")));
+  faulted.step();
+  ASSERT_EQ(faulted.fault(0), Fault::NonFiniteGravity);
+  CopySnapshot wrong_fault = faulted.snapshot(0);
+  Eigen::Index code = -1;
+  for (Eigen::Index i = 0; i < before.parameters.size() && code < 0; ++i)
+    if (before.parameters[i] == 0 && wrong_fault.parameters[i] == static_cast<double>(Fault::NonFiniteGravity)) code = i;
+  ASSERT_GE(code, 0);
+  wrong_fault.parameters[code] = 253;
+  try {
+    faulted.restore(0, wrong_fault);
+    ADD_FAILURE() << "a fault code of 253 was restored";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("restore: the snapshot's fault code 253 is none of Fault's values"),
+              std::string::npos)
+        << e.what();
+  }
+  sim.restore(1, good);  // the good one still goes in
+  EXPECT_EQ(sim.contacts(1).size(), sim.contacts(0).size());
+}
+
 TEST(Simulator, RestoreRefusesASnapshotOfAnotherScene) {
   const Model wheel = spinner(0.1);
   const Model arm =
