@@ -141,6 +141,7 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
   last_fault_.assign(copies, Fault::None);
   episode_step_.assign(copies, 0);
   reset_count_.assign(copies, 0);
+  pending_reset_.assign(copies, 0);
   ended_.reserve(copies);  // step() fills it without allocating
 }
 
@@ -166,10 +167,12 @@ void VecEnv::reset_masked(const std::vector<std::uint8_t>& mask) {
 }
 
 void VecEnv::restart(const std::vector<int>& which) {
-  for (int c : which) last_fault_[c] = Fault::None;
+  for (int c : which) last_fault_[c] = Fault::None, pending_reset_[c] = 0;
   reset_copies(which);
-  // steps once every copy has had a reset, whichever form gave it
-  ready_ = ready_ || std::all_of(reset_count_.begin(), reset_count_.end(), [](std::uint32_t n) { return n > 0; });
+  // steps once every copy has had a reset, whichever form gave it, and
+  // none waits for one
+  ready_ = (ready_ || std::all_of(reset_count_.begin(), reset_count_.end(), [](std::uint32_t n) { return n > 0; })) &&
+           std::none_of(pending_reset_.begin(), pending_reset_.end(), [](unsigned char p) { return p != 0; });
 }
 
 void VecEnv::reset_copies(const std::vector<int>& which) {
@@ -368,7 +371,10 @@ Eigen::VectorXd VecEnv::position_action(const Eigen::VectorXd& q) const {
 }
 
 void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
-  if (!ready_) throw std::logic_error("VecEnv::step: reset every copy first (reset())");
+  if (!ready_)
+    throw std::logic_error(std::any_of(pending_reset_.begin(), pending_reset_.end(), [](unsigned char p) { return p; })
+                               ? "VecEnv::step: the last step's reward function threw; reset every copy first (reset())"
+                               : "VecEnv::step: reset every copy first (reset())");
   if (actions.rows() != copies() || actions.cols() != action_size())
     throw std::invalid_argument("VecEnv::step: actions must be " + std::to_string(copies()) + " x " +
                                 std::to_string(action_size()) + ", got " + std::to_string(actions.rows()) + " x " +
@@ -383,11 +389,18 @@ void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
   terminated_.assign(copies(), 0);
   if (reward_) {
     reward_actions_ = actions;
-    reward_(observations_, reward_actions_, reward_out_, terminated_);
-    if (reward_out_.size() != copies() || static_cast<int>(terminated_.size()) != copies())
-      throw std::logic_error("VecEnv::step: the reward function resized its outputs: reward has " +
-                             std::to_string(reward_out_.size()) + " entries and terminated " +
-                             std::to_string(terminated_.size()) + ", both must stay " + std::to_string(copies()));
+    try {
+      reward_(observations_, reward_actions_, reward_out_, terminated_);
+      if (reward_out_.size() != copies() || static_cast<int>(terminated_.size()) != copies())
+        throw std::logic_error("VecEnv::step: the reward function resized its outputs: reward has " +
+                               std::to_string(reward_out_.size()) + " entries and terminated " +
+                               std::to_string(terminated_.size()) + ", both must stay " + std::to_string(copies()));
+    } catch (...) {
+      // the simulator stepped and the episodes did not: no step until a reset
+      ready_ = false;
+      std::fill(pending_reset_.begin(), pending_reset_.end(), 1);
+      throw;
+    }
   }
   visit_batch([&](const auto& b) {
     for (int c = 0; c < copies(); ++c) last_fault_[c] = static_cast<Fault>(static_cast<int>(b.fault.at(c, 0)));

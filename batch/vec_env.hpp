@@ -207,6 +207,10 @@ class VecEnv {
   std::vector<MimicTarget> mimic_targets_;  // followers whose targets follow their leaders', in that order
   Eigen::Isometry3d fixed_base_pose_ = Eigen::Isometry3d::Identity();  // the base when it does not float
   bool ready_ = false;  // reset() was called
+  // Copies a reset must restart before the env steps again: every copy
+  // once a step's reward function threw (its simulator had stepped, its
+  // counters, faults and resets had not).
+  std::vector<unsigned char> pending_reset_;
   bool contacts_ = false;  // the contacts stage runs: the copies keep a ground of their own
   RewardFunction reward_;
   // the step's actions as the RowMatrix the reward function takes: copied

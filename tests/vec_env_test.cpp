@@ -389,9 +389,12 @@ TEST(VecEnv, TheRewardFunctionSetsRewardsAndTerminations) {
   EXPECT_EQ(env.episode_step()[0], 1);
 }
 
-// A reward function that resizes its outputs is refused, and the next
-// step, with a sound one or none, works.
-TEST(VecEnv, AStepAfterARewardFunctionThatResizedItsOutputsWorks) {
+// A reward function that resizes its outputs is refused, and so is one
+// that throws its own exception: that step's simulator stepped and its
+// episodes did not (counters, faults, resets), so the env refuses to step
+// until every copy is reset; then, with a sound reward function or none, it
+// works. (It once stepped on, an episode a step longer than episode_steps.)
+TEST(VecEnv, AStepAfterARewardFunctionThatThrewNeedsAReset) {
   VecEnv env(anymal(), 4, standing_options(anymal()));
   env.set_reward([](const Observations&, const RowMatrix&, Eigen::VectorXd& reward,
                     std::vector<std::uint8_t>& terminated) {
@@ -401,6 +404,16 @@ TEST(VecEnv, AStepAfterARewardFunctionThatResizedItsOutputsWorks) {
   });
   env.reset();
   EXPECT_THROW_WITH(env.step(wave_actions(env, iota(4), 0)), std::logic_error, "resized its outputs");
+  env.set_reward([](const Observations&, const RowMatrix&, Eigen::VectorXd&, std::vector<std::uint8_t>&) {
+    throw std::runtime_error("the user's own error");
+  });
+  EXPECT_THROW_WITH(env.step(wave_actions(env, iota(4), 0)), std::logic_error,
+                    "the last step's reward function threw; reset every copy first");
+  env.reset();
+  EXPECT_THROW_WITH(env.step(wave_actions(env, iota(4), 0)), std::runtime_error, "the user's own error");
+  env.reset(std::vector<int>{0, 1, 2});
+  EXPECT_THROW_WITH(env.step(wave_actions(env, iota(4), 0)), std::logic_error, "reset every copy first");
+  env.reset(std::vector<int>{3});
   env.set_reward([](const Observations&, const RowMatrix&, Eigen::VectorXd& reward,
                     std::vector<std::uint8_t>& terminated) {
     ASSERT_EQ(reward.size(), 4);
