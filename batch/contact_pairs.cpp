@@ -158,25 +158,41 @@ std::string millimetres(double metres) {
   return text;
 }
 
-// The least separation the narrowphase finds between two moving shapes
-// with their bodies at the given world poses (double, one lane).
-double separation_at(const Side& a0, const Side& b0, const std::vector<Eigen::Isometry3d>& body_pose) {
+// The pair of two shapes, in the narrowphase's order (the lower class
+// first), without its surface properties. A cylinder against another shape
+// is the capsule inside it: the segment shortened by the radius at each
+// end, so that no cap reaches past the cylinder's ends (a capsule as long
+// as the cylinder stuck out by its radius: anymal_b's shank capsules, 5 mm
+// below its feet, carried it on a box where the ground's exact cylinders
+// let its feet do). A disc (half length below the radius) is its sphere.
+ContactPair ordered_pair(const Side& a0, const Side& b0) {
   const bool swap = static_cast<int>(b0.cls) < static_cast<int>(a0.cls);
   const Side& a = swap ? b0 : a0;
   const Side& b = swap ? a0 : b0;
+  ContactPair pair{kind_of(a.cls, b.cls, b.cylinder), a.side, b.side};
+  if (pair.kind != PairKind::PlaneCylinder)
+    for (auto [side, cylinder] : {std::pair{&pair.a, a.cylinder}, std::pair{&pair.b, b.cylinder}})
+      if (cylinder) side->size.y() = std::max(side->size.y() - side->size.x(), 0.0);
+  return pair;
+}
+
+// The least separation the narrowphase finds between two moving shapes
+// with their bodies at the given world poses (double, one lane).
+double separation_at(const Side& a0, const Side& b0, const std::vector<Eigen::Isometry3d>& body_pose) {
+  const ContactPair pair = ordered_pair(a0, b0);
   ContactPairSpec<double> spec;
-  spec.kind = kind_of(a.cls, b.cls, b.cylinder);
-  for (int i = 0; i < 3; ++i) spec.size_a[i] = a.side.size[i], spec.size_b[i] = b.side.size[i];
-  auto world = [&](const Side& side) {
+  spec.kind = pair.kind;
+  for (int i = 0; i < 3; ++i) spec.size_a[i] = pair.a.size[i], spec.size_b[i] = pair.b.size[i];
+  auto world = [&](const PairSide& side) {
     double flat[12];
-    flatten_transform(side.side.body < 0 ? side.side.pose : body_pose[side.side.body] * side.side.pose, flat);
+    flatten_transform(side.body < 0 ? side.pose : body_pose[side.body] * side.pose, flat);
     return broadcast_transform<double>(flat);
   };
-  const Transform<double> A = world(a), B = world(b);
+  const Transform<double> A = world(pair.a), B = world(pair.b);
   std::vector<ContactCandidate<double>> points(pair_candidates(spec.kind));
   contact_detail::collide<double>(spec, {0.0, 0.0, 1.0}, 0.0, A, B, points.data());
   double least = std::numeric_limits<double>::infinity();
-  for (int i = 0; i < pair_candidates(spec.kind); ++i) least = std::min(least, points[i].separation);
+  for (const ContactCandidate<double>& point : points) least = std::min(least, point.separation);
   return least;
 }
 
@@ -239,11 +255,10 @@ ContactPairs build_contact_pairs(const Model& model, const ContactSettings& sett
     return art < static_cast<int>(settings.self_collision.size()) && settings.self_collision[art];
   };
   auto add = [&](const Side& a0, const Side& b0, double friction, double restitution) {
-    const bool swap = static_cast<int>(b0.cls) < static_cast<int>(a0.cls);
-    const Side& a = swap ? b0 : a0;
-    const Side& b = swap ? a0 : b0;
-    ContactPair pair{kind_of(a.cls, b.cls, b.cylinder), a.side, b.side, friction, restitution,
-                     out.candidates};
+    ContactPair pair = ordered_pair(a0, b0);
+    pair.friction = friction;
+    pair.restitution = restitution;
+    pair.first_candidate = out.candidates;
     out.candidates += pair_candidates(pair.kind);
     out.candidate_pair.resize(out.candidates, static_cast<int>(out.pairs.size()));
     out.pairs.push_back(pair);
