@@ -117,9 +117,14 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
     for (int k : action_dofs_)  // the DOF's torque, or the first target coordinate of its joint
       action_field_.push_back(options_.action_mode == ActionMode::Torque ? k : model.body_q_offset[model.dof_body[k]]);
   }
-  if (model.nbody > 0 && model.body_joint[0] != JointType::Free) {
-    const int root = model.articulations.front().root_frame;
-    if (model.frame_body[root] < 0) fixed_base_pose_ = model.frame_placement[root];
+  if (!model.articulations.empty()) {
+    const Articulation& first = model.articulations.front();
+    if (first.floating_base) {
+      base_q_ = model.body_q_offset[first.first_body];
+      base_v_ = model.body_dof_offset[first.first_body];
+    } else if (model.frame_body[first.root_frame] < 0) {
+      fixed_base_pose_ = model.frame_placement[first.root_frame];
+    }
   }
   if (options_.action_mode == ActionMode::PositionTarget)
     for (int k : action_dofs_)  // an action column without a gain would be ignored
@@ -495,11 +500,11 @@ void VecEnv::observe_block(const Batch& b, int block, Observations& o) const {
     const int c = first + l;
     Eigen::Vector3d position, linear_base = Eigen::Vector3d::Zero(), angular_base = Eigen::Vector3d::Zero();
     Eigen::Quaterniond orientation;
-    if (m.body_joint[0] == JointType::Free) {
-      position = o.q.row(c).segment<3>(0).transpose();
-      orientation = Eigen::Quaterniond(o.q(c, 3), o.q(c, 4), o.q(c, 5), o.q(c, 6));
-      linear_base = o.qd.row(c).segment<3>(0).transpose();
-      angular_base = o.qd.row(c).segment<3>(3).transpose();
+    if (base_q_ >= 0) {
+      position = o.q.row(c).segment<3>(base_q_).transpose();
+      orientation = Eigen::Quaterniond(o.q(c, base_q_ + 3), o.q(c, base_q_ + 4), o.q(c, base_q_ + 5), o.q(c, base_q_ + 6));
+      linear_base = o.qd.row(c).segment<3>(base_v_).transpose();
+      angular_base = o.qd.row(c).segment<3>(base_v_ + 3).transpose();
     } else {
       position = fixed_base_pose_.translation();
       orientation = Eigen::Quaterniond(fixed_base_pose_.linear());

@@ -206,6 +206,9 @@ class VecEnv {
   std::vector<int> action_field_;  // per action column: its field of tau (Torque) or target_q (PositionTarget)
   std::vector<MimicTarget> mimic_targets_;  // followers whose targets follow their leaders', in that order
   Eigen::Isometry3d fixed_base_pose_ = Eigen::Isometry3d::Identity();  // the base when it does not float
+  // The first articulation's floating root: its entries in q and v; -1 when
+  // it does not float (the first articulation may be static, its bodies none)
+  int base_q_ = -1, base_v_ = -1;
   bool ready_ = false;  // reset() was called
   // Copies a reset must restart before the env steps again: every copy
   // once a step's reward function threw (its simulator had stepped, its

@@ -76,6 +76,47 @@ std::vector<int> iota(int n, int first = 0) {
   return ids;
 }
 
+// The base observations are the first articulation's: a static table
+// listed first is the base, at rest at its pose, though the free box after
+// it owns body 0 (the box's pose was reported as the base); listed after
+// the box, the box is.
+TEST(VecEnv, TheBaseIsTheFirstArticulationsRootEvenWhenItIsStatic) {
+  ArticulationSpec table;
+  table.name = "table";
+  LinkSpec top;
+  top.name = "table";
+  table.links.push_back(top);
+  table.root_pose = Eigen::Isometry3d(Eigen::Translation3d(5, 0, 0));
+  ArticulationSpec box;
+  box.name = "box";
+  box.floating_base = true;
+  LinkSpec body;
+  body.name = "box";
+  body.inertial.mass = 1;
+  body.inertial.inertia = Eigen::Matrix3d::Identity() * 0.01;
+  box.links.push_back(body);
+  for (const bool table_first : {true, false}) {
+    ModelBuilder builder;
+    builder.add_articulation(table_first ? table : box);
+    builder.add_articulation(table_first ? box : table);
+    const Model model = builder.finalize();
+    VecEnvOptions options;
+    options.initial_q = model.neutral_configuration();
+    options.initial_q[2] = 2.0;  // the box, 2 m up, falling
+    VecEnv env(model, 1, options);
+    env.reset();
+    env.step(RowMatrix(1, env.action_size()));
+    const Observations& o = env.observations();
+    if (table_first) {
+      EXPECT_EQ(o.base_position.row(0), Eigen::RowVector3d(5, 0, 0));
+      EXPECT_EQ(o.base_linear_velocity_world.row(0).norm(), 0.0);
+    } else {
+      EXPECT_EQ(o.base_position(0, 2), env.simulator().q(0)[2]);
+      EXPECT_LT(o.base_linear_velocity_world(0, 2), 0.0) << "falling";
+    }
+  }
+}
+
 TEST(VecEnv, ObservationsDescribeTheSimulatorState) {
   VecEnv env(anymal(), 5, standing_options(anymal()));
   env.reset();
