@@ -281,6 +281,26 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
     return "Model::gravity must be " + finite_word(o.precision) + ", got (" + number_text(model.gravity.x()) + ", " +
            number_text(model.gravity.y()) + ", " + number_text(model.gravity.z()) + ")";
   });
+  // a model loads in double: its bodies' inertias, placements and armature
+  // must fit the step's precision too, as set_body_inertia requires
+  for (int b = 0; b < model.nbody; ++b)
+    require(finite_in(o.precision, model.body_mass[b]) && all_finite_in(o.precision, model.body_com[b]) &&
+                all_finite_in(o.precision, model.body_inertia[b]) &&
+                all_finite_in(o.precision, model.body_placement[b].matrix()),
+            [&] {
+              return "body " + std::to_string(b) + " (" + model.frame_name[model.body_frame[b]] +
+                     "): its mass, centre of mass, inertia and joint placement must be " + finite_word(o.precision);
+            });
+  for (int f = 0; f < static_cast<int>(model.frame_placement.size()); ++f)
+    require(all_finite_in(o.precision, model.frame_placement[f].matrix()), [&] {
+      return "frame " + std::to_string(f) + " (" + model.frame_name[f] + "): its placement must be " +
+             finite_word(o.precision);
+    });
+  for (int k = 0; k < model.nv; ++k)
+    require(finite_in(o.precision, model.dof_armature[k]), [&] {
+      return "DOF " + std::to_string(k) + " (" + model.dof_name[k] + "): its armature must be " +
+             finite_word(o.precision);
+    });
   require(static_cast<int>(dofs.size()) == model.nv, "Simulator: " + std::to_string(dofs.size()) +
                                                          " DOF settings for a model with " + std::to_string(model.nv) +
                                                          " DOFs");

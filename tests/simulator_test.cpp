@@ -992,6 +992,30 @@ TEST(Simulator, AMovedFromSimulatorIsRefusedUntilAssigned) {
   EXPECT_EQ(a.copies(), 2);
 }
 
+// A model's values beyond float's range (the model loads in double) are
+// refused by a float simulator, naming the body, where every copy faulted
+// NonFiniteState at its first step; a double simulator takes them.
+TEST(Simulator, AFloatSimulatorRefusesModelValuesBeyondFloatsRange) {
+  ArticulationSpec spec = test::one_link_spec("heavy", "mass", JointType::Revolute, Eigen::Vector3d::Constant(1e39));
+  spec.links[1].inertial.mass = 1e39;
+  const Model model = test::build(spec);
+  StepOptions o;
+  o.precision = Precision::Float;
+  try {
+    Simulator sim(model, 2, o);
+    ADD_FAILURE() << "a mass of 1e39 was taken in float";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("body 0 (mass): its mass, centre of mass, inertia and joint placement must be "
+                                         "finite (in float, within 3.4e38)"),
+              std::string::npos)
+        << e.what();
+  }
+  o.precision = Precision::Double;
+  Simulator sim(model, 2, o);
+  sim.step();
+  EXPECT_EQ(sim.fault(0), Fault::None);
+}
+
 TEST(Simulator, CodeCompiledForOtherLanesIsRefused) {
   const Model model = test::rod_chain({1.0}, 0.5);
   const HeaderBuild own;
