@@ -872,16 +872,11 @@ void Simulator::restore(int copy, const CopySnapshot& s) {
     check_free_of_floating_bases(entries(&b.joint_damping), "restore: the snapshot's joint damping");
     check_free_of_floating_bases(entries(&b.armature), "restore: the snapshot's armature");
     const Eigen::VectorXd inertia = entries(&b.state.inertia);
-    constexpr int n = BatchState<double>::kInertiaParams;  // mass, COM (3), xx yy zz xy xz yz
+    constexpr int n = BatchState<double>::kInertiaParams;
     for (int body = 0; body < model_->nbody; ++body) {
-      const Eigen::Matrix<double, n, 1> x = inertia.segment<n>(n * body);
-      Eigen::Matrix3d I;
-      I << x[4], x[7], x[8], x[7], x[5], x[9], x[8], x[9], x[6];
-      require(all_finite_in(options_.precision, x) && x[0] >= 0 && symmetric_positive_semidefinite(I), [&] {
-        return "restore: the snapshot's body " + std::to_string(body) + " (" +
-               model_->frame_name[model_->body_frame[body]] +
-               ") needs a mass >= 0 and a symmetric positive semidefinite inertia, finite";
-      });
+      const double* x = inertia.data() + n * body;
+      check_body_inertia(body, x[0], Eigen::Vector3d(x[1], x[2], x[3]), BatchState<double>::rotational_inertia(x),
+                         "restore: the snapshot");
     }
     const double fault = entries(&b.fault)[0];
     require(fault >= 0 && fault <= static_cast<double>(Fault::NonFiniteState) && fault == std::floor(fault),
@@ -1093,8 +1088,16 @@ void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::V
   if (body < 0 || body >= model_->nbody)
     throw std::out_of_range("set_body_inertia: body index " + std::to_string(body) + " outside [0, " +
                             std::to_string(model_->nbody) + ")");
+  check_body_inertia(body, mass, com, inertia, "set_body_inertia");
+  const bool own_before = body_has_own_inertia(copy, body);
+  visit([&](auto& b) { b.state.set_body_inertia(copy, body, mass, com, inertia); });
+  note_own_inertia(copy, body, own_before);
+}
+
+void Simulator::check_body_inertia(int body, double mass, const Eigen::Vector3d& com, const Eigen::Matrix3d& inertia,
+                                   const char* what) const {
   auto where = [&] {
-    return "set_body_inertia: body " + std::to_string(body) + " (" + model_->frame_name[model_->body_frame[body]] +
+    return std::string(what) + ": body " + std::to_string(body) + " (" + model_->frame_name[model_->body_frame[body]] +
            "): ";
   };
   const Precision p = options_.precision;
@@ -1103,9 +1106,6 @@ void Simulator::set_body_inertia(int copy, int body, double mass, const Eigen::V
           [&] { return where() + "COM and inertia must be " + finite_word(p); });
   require(symmetric_positive_semidefinite(inertia),
           [&] { return where() + "the rotational inertia must be symmetric positive semidefinite"; });
-  const bool own_before = body_has_own_inertia(copy, body);
-  visit([&](auto& b) { b.state.set_body_inertia(copy, body, mass, com, inertia); });
-  note_own_inertia(copy, body, own_before);
 }
 
 bool Simulator::body_has_own_inertia(int copy, int body) const {

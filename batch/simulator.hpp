@@ -430,6 +430,10 @@ class Simulator {
   // One value per actuator, or std::invalid_argument naming `what`.
   void check_per_actuator(const Eigen::VectorXd& values, const char* what) const;
   void check_per_dof(const Eigen::VectorXd& values, const char* what) const;  // nv finite values >= 0
+  // mass >= 0, COM and inertia finite, the inertia symmetric positive
+  // semidefinite; the message begins `what: body i (name): `
+  void check_body_inertia(int body, double mass, const Eigen::Vector3d& com, const Eigen::Matrix3d& inertia,
+                          const char* what) const;
   void check_free_of_floating_bases(const Eigen::VectorXd& values, const char* what) const;
   // Invalidates the plan when a copy's drive gains, damping or wrenches need
   // a stage the plan skips.

@@ -146,7 +146,7 @@ VecEnv::VecEnv(const Model& model, int copies, VecEnvOptions options, HeaderBuil
   last_fault_.assign(copies, Fault::None);
   episode_step_.assign(copies, 0);
   reset_count_.assign(copies, 0);
-  pending_reset_.assign(copies, 0);
+  pending_reset_.assign(copies, 1);  // every copy until its first reset
   ended_.reserve(copies);  // step() fills it without allocating
 }
 
@@ -174,10 +174,8 @@ void VecEnv::reset_masked(const std::vector<std::uint8_t>& mask) {
 void VecEnv::restart(const std::vector<int>& which) {
   for (int c : which) last_fault_[c] = Fault::None, pending_reset_[c] = 0;
   reset_copies(which);
-  // steps once every copy has had a reset, whichever form gave it, and
-  // none waits for one
-  ready_ = (ready_ || std::all_of(reset_count_.begin(), reset_count_.end(), [](std::uint32_t n) { return n > 0; })) &&
-           std::none_of(pending_reset_.begin(), pending_reset_.end(), [](unsigned char p) { return p != 0; });
+  // steps once no copy waits for a reset, whichever form gave it
+  ready_ = std::none_of(pending_reset_.begin(), pending_reset_.end(), [](unsigned char p) { return p != 0; });
 }
 
 void VecEnv::reset_copies(const std::vector<int>& which) {
@@ -377,9 +375,9 @@ Eigen::VectorXd VecEnv::position_action(const Eigen::VectorXd& q) const {
 
 void VecEnv::step(const Eigen::Ref<const RowMatrix>& actions) {
   if (!ready_)
-    throw std::logic_error(std::any_of(pending_reset_.begin(), pending_reset_.end(), [](unsigned char p) { return p; })
-                               ? "VecEnv::step: the last step's reward function threw; reset every copy first (reset())"
-                               : "VecEnv::step: reset every copy first (reset())");
+    throw std::logic_error(
+        "VecEnv::step: reset every copy first (reset()): before the first step, and after a step whose reward "
+        "function threw");
   if (actions.rows() != copies() || actions.cols() != action_size())
     throw std::invalid_argument("VecEnv::step: actions must be " + std::to_string(copies()) + " x " +
                                 std::to_string(action_size()) + ", got " + std::to_string(actions.rows()) + " x " +

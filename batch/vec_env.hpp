@@ -209,10 +209,10 @@ class VecEnv {
   // The first articulation's floating root: its entries in q and v; -1 when
   // it does not float (the first articulation may be static, its bodies none)
   int base_q_ = -1, base_v_ = -1;
-  bool ready_ = false;  // reset() was called
-  // Copies a reset must restart before the env steps again: every copy
-  // once a step's reward function threw (its simulator had stepped, its
-  // counters, faults and resets had not).
+  bool ready_ = false;  // no copy waits for a reset
+  // Copies a reset must restart before the env steps: every copy before its
+  // first reset, and every copy once a step's reward function threw (its
+  // simulator had stepped, its counters, faults and resets had not).
   std::vector<unsigned char> pending_reset_;
   bool contacts_ = false;  // the contacts stage runs: the copies keep a ground of their own
   RewardFunction reward_;

@@ -32,6 +32,14 @@ struct BatchState {
   // Overrides one body's inertial parameters in one copy: mass (kg), COM in
   // the body frame, rotational inertia about the COM in body axes.
   void set_body_inertia(int copy, int body, double mass, const Eigen::Vector3d& com, const Eigen::Matrix3d& rot_inertia);
+
+  // The rotational inertia among one body's kInertiaParams parameters
+  // (mass, COM (3), xx yy zz xy xz yz), as a symmetric matrix.
+  static Eigen::Matrix3d rotational_inertia(const double* params) {
+    Eigen::Matrix3d I;
+    I << params[4], params[7], params[8], params[7], params[5], params[9], params[8], params[9], params[6];
+    return I;
+  }
 };
 
 template <class T>

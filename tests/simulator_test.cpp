@@ -635,7 +635,7 @@ TEST(Simulator, RestoreRefusesValuesTheSettersRefuse) {
   const Eigen::Index mass = index_of(good.parameters, 7.25);
   ASSERT_GE(mass, 0);
   bad.parameters[mass] = -1;
-  expect_refused(bad, "restore: the snapshot's body 0 (body) needs a mass >= 0");
+  expect_refused(bad, "restore: the snapshot: body 0 (body): mass must be finite and >= 0");
   Simulator faulted(ball, 1, o);
   const CopySnapshot before = faulted.snapshot(0);
   faulted.set_gravity(0, Eigen::Vector3d::Constant(std::nan("")));

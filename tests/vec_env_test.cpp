@@ -449,7 +449,8 @@ TEST(VecEnv, AStepAfterARewardFunctionThatThrewNeedsAReset) {
     throw std::runtime_error("the user's own error");
   });
   EXPECT_THROW_WITH(env.step(wave_actions(env, iota(4), 0)), std::logic_error,
-                    "the last step's reward function threw; reset every copy first");
+                    "reset every copy first (reset()): before the first step, and after a step whose reward "
+                    "function threw");
   env.reset();
   EXPECT_THROW_WITH(env.step(wave_actions(env, iota(4), 0)), std::runtime_error, "the user's own error");
   env.reset(std::vector<int>{0, 1, 2});
