@@ -249,6 +249,64 @@ void validate_mimics(const Model& model, const StepOptions& o) {
   }
 }
 
+// Model::fixed_tendons as the step takes them: each over distinct DOFs of
+// revolute or prismatic joints with nonzero coefficients, its parameters
+// finite in the step's precision, its gains non-negative and its limits in
+// order. Checked whether the stage runs or not, as the mimics' DOFs.
+void validate_fixed_tendons(const Model& model, const StepOptions& o) {
+  for (std::size_t i = 0; i < model.fixed_tendons.size(); ++i) {
+    const FixedTendon& t = model.fixed_tendons[i];
+    const std::string where = "Model::fixed_tendons[" + std::to_string(i) + "] ('" + t.name + "'): ";
+    require(!t.joints.empty(), where + "has no joints");
+    for (std::size_t j = 0; j < t.joints.size(); ++j) {
+      const TendonJoint& joint = t.joints[j];
+      const std::string at = where + "joints[" + std::to_string(j) + "]: ";
+      require(joint.dof >= 0 && joint.dof < model.nv, [&] {
+        return at + "dof " + std::to_string(joint.dof) + " must be a DOF of the model (of " + std::to_string(model.nv) +
+               ")";
+      });
+      const JointType type = model.body_joint[model.dof_body[joint.dof]];
+      require(type == JointType::Revolute || type == JointType::Prismatic, [&] {
+        return at + model.dof_name[joint.dof] + " is a DOF of a " + joint_type_name(type) +
+               " joint: a tendon spans revolute and prismatic joints";
+      });
+      require(finite_in(o.precision, joint.coefficient) && joint.coefficient != 0.0, [&] {
+        return at + "coefficient must be nonzero and " + finite_word(o.precision) + ", got " +
+               number_text(joint.coefficient);
+      });
+      for (std::size_t other = 0; other < j; ++other)
+        require(t.joints[other].dof != joint.dof,
+                [&] {
+                  return at + model.dof_name[joint.dof] + " appears twice (also joints[" + std::to_string(other) + "])";
+                });
+    }
+    auto gain = [&](double x, const char* name) {
+      require(finite_in(o.precision, x) && x >= 0.0,
+              [&] {
+                return where + name + " must be non-negative and " + finite_word(o.precision) + ", got " +
+                       number_text(x);
+              });
+    };
+    gain(t.stiffness, "stiffness");
+    gain(t.damping, "damping");
+    gain(t.limit_stiffness, "limit_stiffness");
+    require(finite_in(o.precision, t.rest_length) && finite_in(o.precision, t.offset), [&] {
+      return where + "rest_length and offset must be " + finite_word(o.precision) + ", got " +
+             number_text(t.rest_length) + " and " + number_text(t.offset);
+    });
+    // a limit may be infinite (none), not beyond the precision's range
+    auto limit = [&](double x) { return !std::isnan(x) && (std::isinf(x) || finite_in(o.precision, x)); };
+    require(limit(t.lower_limit) && limit(t.upper_limit) && t.lower_limit <= t.upper_limit &&
+                t.lower_limit < std::numeric_limits<double>::infinity() &&
+                t.upper_limit > -std::numeric_limits<double>::infinity(),
+            [&] {
+              return where + "lower_limit and upper_limit must be ordered, each " + finite_word(o.precision) +
+                     " or infinite on its own side, got " + number_text(t.lower_limit) + " and " +
+                     number_text(t.upper_limit);
+            });
+  }
+}
+
 void validate(const Model& model, int copies, const StepOptions& o, const std::vector<DofSettings>& dofs) {
   require(copies >= 1, "Simulator: copies must be at least 1, got " + std::to_string(copies));
   // and its substeps positive in the precision the step runs in
@@ -272,6 +330,7 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
           "StepOptions::conserve_linear_momentum needs the semi-implicit Euler integrator");
   validate_link_damping(model, o);
   validate_mimics(model, o);
+  validate_fixed_tendons(model, o);
   // every copy starts with these: beyond the precision's range each would fault
   require(!o.contacts.ground || finite_in(o.precision, o.contacts.ground_height), [&] {
     return "ContactSettings::ground_height must be " + finite_word(o.precision) + ", got " +
@@ -441,7 +500,8 @@ Simulator::Simulator(const Model& model, int copies, const StepOptions& options,
   make_plan();
   const StepPlan plan = step_plan();
   if (options_.integrator == Integrator::RK4 &&
-      (plan.mimic_joints || plan.hard_limits || plan.velocity_limits || plan.coulomb_friction || plan.contacts))
+      (plan.mimic_joints || plan.fixed_tendons || plan.hard_limits || plan.velocity_limits || plan.coulomb_friction ||
+       plan.contacts))
     throw std::invalid_argument(
         "StepOptions::integrator RK4 integrates scenes without solver rows, and this scene has " + rows_summary() +
         ": use SemiImplicitEuler, Trapezoid or ExplicitEuler, or force those stages off");
@@ -513,6 +573,8 @@ void Simulator::make_plan() const {
       decide(Stage::PerCopyJointParameters, mode(Stage::PerCopyJointParameters), copies_with_any(own_joint_parameters_),
              "copies with their own drive gains, damping, armature or joint friction"),
       decide(Stage::MimicJoints, mode(Stage::MimicJoints), static_cast<int>(model_->mimics.size()), "mimic tags"),
+      decide(Stage::FixedTendons, mode(Stage::FixedTendons), static_cast<int>(model_->fixed_tendons.size()),
+             "fixed tendons"),
       decide(Stage::HardLimits, mode(Stage::HardLimits), hard, "DOFs with hard position limits"),
       decide(Stage::VelocityLimits, mode(Stage::VelocityLimits), velocity, "DOFs with velocity limits"),
       decide(Stage::CoulombFriction, mode(Stage::CoulombFriction), coulomb, "DOFs with Coulomb friction"),
@@ -533,6 +595,7 @@ StepPlan Simulator::step_plan() const {
   p.per_copy_inertia = runs(Stage::PerCopyInertia);
   p.per_copy_joint_parameters = runs(Stage::PerCopyJointParameters);
   p.mimic_joints = runs(Stage::MimicJoints);
+  p.fixed_tendons = runs(Stage::FixedTendons);
   p.hard_limits = runs(Stage::HardLimits);
   p.velocity_limits = runs(Stage::VelocityLimits);
   p.coulomb_friction = runs(Stage::CoulombFriction);
@@ -542,7 +605,8 @@ StepPlan Simulator::step_plan() const {
 
 std::string Simulator::rows_summary() const {
   std::string out;
-  for (Stage s : {Stage::MimicJoints, Stage::HardLimits, Stage::VelocityLimits, Stage::CoulombFriction, Stage::Contacts}) {
+  for (Stage s : {Stage::MimicJoints, Stage::FixedTendons, Stage::HardLimits, Stage::VelocityLimits,
+                  Stage::CoulombFriction, Stage::Contacts}) {
     const StageDecision& d = plan_[static_cast<int>(s)];
     if (!d.runs) continue;
     if (!out.empty()) out += ", ";
@@ -593,7 +657,8 @@ std::vector<StiffDrive> Simulator::stiff_drives() const {
   // a drive stiff enough to act as a hard constraint matters beside other ones
   auto runs = [&](Stage stage) { return plan_[static_cast<int>(stage)].runs; };
   const bool hard =
-      runs(Stage::MimicJoints) || runs(Stage::HardLimits) || runs(Stage::VelocityLimits) || contacts_found();
+      runs(Stage::MimicJoints) || runs(Stage::FixedTendons) || runs(Stage::HardLimits) || runs(Stage::VelocityLimits) ||
+      contacts_found();
   if (!runs(Stage::Drives) || !hard || copies() == 0) return {};
   return lockstep::stiff_drives(*model_, dofs_, q(0), options_.dt / options_.substeps);
 }
@@ -611,7 +676,7 @@ std::vector<std::string> Simulator::warnings() const {
         options_.integrator);
   }
   for (std::string line : {describe_stiff_drives(*model_, stiff_drives(), options_.substeps), fast_modes,
-                           unenforced_mimics()})
+                           unenforced_mimics(), unenforced_tendons()})
     if (!line.empty()) lines.push_back(std::move(line));
   lines.insert(lines.end(), pairs_.notes.begin(), pairs_.notes.end());
   return lines;
@@ -624,6 +689,13 @@ std::string Simulator::unenforced_mimics() const {
   return "mimic joints: not enforced, their stage forced off (" + std::to_string(mimics.size()) +
          " mimic tag(s), such as " + model_->dof_name[first.dof] + " following " +
          model_->dof_name[first.leader_dof] + "; each DOF moves on its own)";
+}
+
+std::string Simulator::unenforced_tendons() const {
+  const std::vector<FixedTendon>& tendons = model_->fixed_tendons;
+  if (tendons.empty() || plan_[static_cast<int>(Stage::FixedTendons)].runs) return {};
+  return "fixed tendons: not enforced, their stage forced off (" + std::to_string(tendons.size()) +
+         " tendon(s), such as '" + tendons.front().name + "'; their joints move on their own)";
 }
 
 void Simulator::refresh_plan() const {

@@ -135,9 +135,9 @@ struct StepBatch {
 // RaiSim's "torque over the step", term by term, for one copy.
 struct AppliedTorque {
   Eigen::VectorXd drive;     // tau_cmd - (w_drive / dt) dv
-  Eigen::VectorXd passive;   // damping, springs, soft limits, Stribeck friction
+  Eigen::VectorXd passive;   // damping, springs, soft limits, Stribeck friction, fixed tendons' springs
   Eigen::VectorXd friction;  // Coulomb friction impulse / dt
-  Eigen::VectorXd limits;    // position and velocity limit impulses / dt
+  Eigen::VectorXd limits;    // position and velocity limit, mimic and tendon limit impulses / dt
   Eigen::VectorXd actuators; // the actuators' torques on the joints (strength x G tau_m, strength x r_c tau_m)
 };
 
@@ -400,6 +400,7 @@ class Simulator {
   bool contacts_found() const;  // the contacts stage runs and some shape pair may touch
   void check_ground(int copy, const char* what, double friction) const;
   std::string unenforced_mimics() const;
+  std::string unenforced_tendons() const;
   StepPlan step_plan() const;
   std::string rows_summary() const;
   void check_copy(int copy, const char* function) const;  // throws std::out_of_range naming the function

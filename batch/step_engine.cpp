@@ -122,8 +122,8 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     for (int i = 0; i < joint_nv(type); ++i) driven_v_.push_back(model.body_dof_offset[b] + i);
   }
 
-  // Solver rows: the mimic couplings, then DOF by DOF position limit,
-  // velocity limit, friction.
+  // Solver rows: the mimic couplings, the fixed tendons' rows, then DOF by
+  // DOF position limit, velocity limit, friction.
   auto spherical = [&](int k) { return model.body_joint[model.dof_body[k]] == JointType::Spherical; };
   auto q_index_of = [&](int k) {
     const int body = model.dof_body[k];
@@ -136,15 +136,30 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   // q_f = m q_l + c as PhysX's q_A + G q_B + offset = 0: A the follower,
   // G = -m, offset -c. First, so that the sweeps take the limits and
   // contacts after them: those hold at the mimic's expense, as in PhysX.
+  auto add_coupled_row = [&](JointRowKind kind, const std::vector<TendonJoint>& joints, double a, double b) {
+    add_row(kind, joints.front().dof, a, b);
+    for (const TendonJoint& j : joints)
+      row_specs_.back().terms.push_back(
+          {j.dof, q_index_of(j.dof), columns_.column_of(km_, j.dof), static_cast<T>(j.coefficient)});
+    ++coupled_rows_;
+    return &row_specs_.back();
+  };
   if (plan.mimic_joints)
-    for (const Mimic& mimic : model.mimics) {
-      add_row(JointRowKind::Mimic, mimic.dof, -mimic.offset, 0);
-      JointRowSpec<T>& row = row_specs_.back();
-      row.dof2 = mimic.leader_dof;
-      row.q_index2 = q_index_of(mimic.leader_dof);
-      row.column2 = columns_.column_of(km_, mimic.leader_dof);
-      row.gear = static_cast<T>(-mimic.multiplier);
-      ++mimic_rows_;
+    for (const Mimic& mimic : model.mimics)
+      add_coupled_row(JointRowKind::Mimic, {{mimic.dof, 1.0}, {mimic.leader_dof, -mimic.multiplier}}, -mimic.offset, 0);
+  // A tendon's spring where it has stiffness or damping, its limits where
+  // it has one.
+  if (plan.fixed_tendons)
+    for (const FixedTendon& tendon : model.fixed_tendons) {
+      if (tendon.stiffness > 0.0 || tendon.damping > 0.0) {
+        JointRowSpec<T>* row =
+            add_coupled_row(JointRowKind::TendonSpring, tendon.joints, -(tendon.rest_length + tendon.offset), 0);
+        row->stiffness = static_cast<T>(tendon.stiffness);
+        row->damping = static_cast<T>(tendon.damping);
+      }
+      if (std::isfinite(tendon.lower_limit) || std::isfinite(tendon.upper_limit))
+        add_coupled_row(JointRowKind::TendonLimit, tendon.joints, tendon.lower_limit, tendon.upper_limit)->stiffness =
+            static_cast<T>(tendon.limit_stiffness);
     }
   // A row stage forced On gets a row on every DOF it can act on, even where
   // the scene gives it nothing to do (infinite limits, zero friction): such
@@ -736,10 +751,11 @@ void StepEngine<L>::prepare_rows(int block, const T* q, T h, Scratch& s) {
   s.contact_rows_spilled = false;
   for (int k = 0; k < km_.nv; ++k) s.u_free[k] = s.u1[k];
   // the joint rows a lane needs at the free velocity (solve_blocks); a
-  // mimic row wherever the lane solves, or the other rows' impulses would
-  // break it
-  for (int r = 0; r < mj; ++r) s.need[r] = r < mimic_rows_ ? !rest : !rest && !s.need[r];  // s.need held the row's slack
-  s.joint_rows_needed = lane::any<L>(!rest && (mimic_rows_ > 0 ? lane::mask_t<L>(true) : !joint_rows_slack));
+  // row on several DOFs (a mimic's, a tendon's) wherever the lane solves,
+  // or the other rows' impulses would break it
+  for (int r = 0; r < mj; ++r)
+    s.need[r] = r < coupled_rows_ ? !rest : !rest && !s.need[r];  // s.need held the row's slack
+  s.joint_rows_needed = lane::any<L>(!rest && (coupled_rows_ > 0 ? lane::mask_t<L>(true) : !joint_rows_slack));
 }
 
 // The columns of Mt^-1 that the round's joint rows read D off
@@ -750,11 +766,13 @@ void StepEngine<L>::build_joint_columns(Scratch& s) const {
   int n = 0;
   for (int a = 0; a < s.needed_joint_rows; ++a) {
     const JointRowSpec<T>& spec = row_specs_[s.needed_source[a]];
-    for (const int c : {spec.column, spec.column2})
-      if (c >= 0 && !s.column_built[c]) {
-        s.column_built[c] = 1;
-        s.new_columns[n++] = c;
-      }
+    auto take = [&](int c) {
+      if (s.column_built[c]) return;
+      s.column_built[c] = 1;
+      s.new_columns[n++] = c;
+    };
+    if (spec.terms.empty()) take(spec.column);
+    for (const RowTerm<T>& term : spec.terms) take(term.column);
   }
   joint_row_columns<L>(km_, columns_, s.ws, s.rows, s.new_columns.data(), n);
   build_contact_columns(s);
@@ -961,6 +979,7 @@ void StepEngine<L>::build_round(Scratch& s) const {
     copy_row(rows, r, sub, a, nj - mj, a < nj ? s.need[r] : all);  // contact friction: its normal
     if (a < nj) {
       for (int b = 0; b < nj; ++b) D[a * n + b] = joint_row_delassus<L>(row_specs_, s.rows, nv, r, source[b]);
+      if (s.rows.compliance[r] != T(0)) D[a * n + a] += L(s.rows.compliance[r]);  // a spring row (joint_row)
       // the coupling with the contacts, J_r X_i (X_i = Mt^-1 J_i^T,
       // contact_columns), into both of its entries
       const L sigma = s.rows.sigma[r];
@@ -1031,7 +1050,7 @@ void StepEngine<L>::begin_held_check(Scratch& s, T h) const {
     s.held_speed[c] = inf;
     s.dof_displacement[c] = zero;
   }
-  for (int r = mimic_rows_; r < static_cast<int>(row_specs_.size()); ++r) {  // a mimic row is never held
+  for (int r = coupled_rows_; r < static_cast<int>(row_specs_.size()); ++r) {  // a coupled row is never held
     L& speed = s.held_speed[row_specs_[r].column];
     const L bound = row_speed_bound<L>(row_specs_[r], s.rows.rows.error[r], s.rows.rows.hi[r], h);
     speed = lane::select(s.need[r], speed, lane::min(speed, bound));
@@ -1074,7 +1093,7 @@ void StepEngine<L>::check_held_rows(Scratch& s, T h) const {
     // sigma_r w_r per row.
     const L* sigma = s.rows.sigma.data();
     const L inv_substep(T(iterations) / h);
-    for (int r = mimic_rows_; r < mj; ++r) {  // a mimic row is never held (prepare_rows)
+    for (int r = coupled_rows_; r < mj; ++r) {  // a coupled row is never held (prepare_rows)
       const int c = row_specs_[r].column;
       const L v = sigma[r] * velocity[c];
       const bool positional = rows.positional[r] != 0;
@@ -1096,7 +1115,7 @@ bool StepEngine<L>::end_round(Scratch& s) const {
   const int mj = static_cast<int>(row_specs_.size());
   if (options_.solver != SolverType::TGS) {
     needed_velocity_change(s);
-    for (int r = mimic_rows_; r < mj; ++r)  // a mimic row is never held (prepare_rows)
+    for (int r = coupled_rows_; r < mj; ++r)  // a coupled row is never held (prepare_rows)
       s.violated[r] = !joint_row_slack<L>(row_specs_, s.rows, r, s.contacts.dv.data());
   }
   bool grew = false;
@@ -1136,14 +1155,18 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
     add(actuation + k * W, s.terms.actuation[k], first_run);
     if (first_run) lane::store(L(T(0)), friction + k * W), lane::store(L(T(0)), limits + k * W);
   }
-  // a mimic row's impulse acts on both its DOFs (J^T lambda), with the limits
+  // a row on several DOFs acts on each (J^T lambda): a mimic's and a
+  // tendon limit's with the limits, a tendon spring's with the passive
+  // torques
   const T* impulse = batch_.impulse.block(block);
   for (std::size_t r = 0; r < row_specs_.size(); ++r) {
     const JointRowSpec<T>& spec = row_specs_[r];
-    T* out = spec.kind == JointRowKind::Friction ? friction : limits;
+    T* out = spec.kind == JointRowKind::Friction       ? friction
+             : spec.kind == JointRowKind::TendonSpring ? passive
+                                                       : limits;
     const L torque = lane::load<L>(impulse + r * W) * inv_h;  // stored along J / sigma (finish_rows)
-    add(out + spec.dof * W, torque, false);
-    if (spec.dof2 >= 0) add(out + spec.dof2 * W, L(spec.gear) * torque, false);
+    if (spec.terms.empty()) add(out + spec.dof * W, torque, false);
+    for (const RowTerm<T>& term : spec.terms) add(out + term.dof * W, L(term.coefficient) * torque, false);
   }
 }
 

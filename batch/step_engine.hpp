@@ -26,7 +26,8 @@ struct StepPlan {
   // else every block reads one block of the scene's drive gains, damping,
   // armature and joint friction (all copies hold those)
   bool per_copy_joint_parameters = false;
-  bool mimic_joints = false, hard_limits = false, velocity_limits = false, coulomb_friction = false;
+  bool mimic_joints = false, fixed_tendons = false, hard_limits = false, velocity_limits = false;
+  bool coulomb_friction = false;
   bool contacts = false;
 };
 
@@ -67,8 +68,8 @@ class StepEngine final : public Simulator::Engine {
   std::vector<std::pair<int, int>> row_layout() const override {
     std::vector<std::pair<int, int>> layout;
     for (const JointRowSpec<T>& row : row_specs_) {
-      layout.emplace_back(static_cast<int>(row.kind), row.dof);
-      if (row.dof2 >= 0) layout.emplace_back(static_cast<int>(row.kind), row.dof2);  // a mimic row's leader
+      if (row.terms.empty()) layout.emplace_back(static_cast<int>(row.kind), row.dof);
+      for (const RowTerm<T>& term : row.terms) layout.emplace_back(static_cast<int>(row.kind), term.dof);
     }
     return layout;
   }
@@ -225,7 +226,7 @@ class StepEngine final : public Simulator::Engine {
   KernelModel<T> km_;
   JointTermModel<T> jm_;
   std::vector<JointRowSpec<T>> row_specs_;
-  int mimic_rows_ = 0;  // the first rows of row_specs_: mimic couplings
+  int coupled_rows_ = 0;  // the first rows of row_specs_, those on several DOFs: mimic couplings, then tendons'
   JointRowColumns columns_;  // the DOFs joint rows act on
   std::vector<ContactPairSpec<T>> contact_pairs_;  // empty unless plan.contacts
   std::vector<int> contact_bodies_;  // the moving bodies of contact_pairs_

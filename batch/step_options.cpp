@@ -26,6 +26,7 @@ const char* stage_name(Stage stage) {
     case Stage::PerCopyInertia: return "per-copy inertia";
     case Stage::PerCopyJointParameters: return "per-copy joint parameters";
     case Stage::MimicJoints: return "mimic joints";
+    case Stage::FixedTendons: return "fixed tendons";
     case Stage::HardLimits: return "hard limits";
     case Stage::VelocityLimits: return "velocity limits";
     case Stage::CoulombFriction: return "Coulomb friction";

@@ -110,6 +110,7 @@ enum class Stage : int {
   PerCopyInertia,          // each copy's own inertial parameters; skipped, all share the model's
   PerCopyJointParameters,  // each copy's own drive gains, damping, armature, joint friction; skipped, the scene's
   MimicJoints,             // solver rows: URDF mimic tags as equalities q_f = m q_l + c
+  FixedTendons,            // solver rows: fixed tendons' springs and length limits
   HardLimits,              // solver rows: one-sided position limits
   VelocityLimits,          // solver rows: |v| bounds
   CoulombFriction,         // solver rows: boxed friction impulses

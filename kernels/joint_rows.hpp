@@ -1,8 +1,9 @@
-// Joint-space solver rows: mimic couplings, hard position limits, velocity
-// limits and Coulomb joint friction. A limit or friction row acts on one DOF
-// k with the Jacobian J = sigma e_k, sigma = +-1 per lane (which limit the
-// joint heads for; +1 for the others); a mimic row on two, J = sigma (e_A +
-// G e_B). D = J Mt^-1 J^T is read off the columns Mt^-1 e_k, computed once
+// Joint-space solver rows: mimic couplings, fixed tendons, hard position
+// limits, velocity limits and Coulomb joint friction. A limit or friction
+// row acts on one DOF k with the Jacobian J = sigma e_k, sigma = +-1 per lane
+// (which limit the joint heads for; +1 for the others); a mimic row on two,
+// J = sigma (e_A + G e_B), and a tendon's rows on its joints, J = sigma
+// sum_i c_i e_i. D = J Mt^-1 J^T is read off the columns Mt^-1 e_k, computed once
 // per distinct DOF from the tree-sparse factorisation of Mt = M + diag(w).
 // A Spherical joint's DOF k is limited in component k of its rotation vector
 // r = log(q), which moves at that DOF's velocity to first order (r' = w
@@ -20,6 +21,16 @@ enum class JointRowKind : unsigned char {
   VelocityLimit,  // -v_max <= v <= v_max, lambda free (a band row)
   Friction,       // v = 0 with |lambda| <= friction dt
   Mimic,          // q_A + G q_B + offset = 0 (PhysX's mimic joint): an equality, lambda free
+  TendonSpring,   // a fixed tendon's spring-damper on l = sum_i c_i q_i, implicit: a compliant equality, lambda free
+  TendonLimit,    // a fixed tendon's length limits: one-sided, hard (positional) or a spring past the limit
+};
+
+// One term c e_dof of a row on several DOFs, with the DOF's entry in q and
+// its column (JointRowColumns).
+template <class T>
+struct RowTerm {
+  int dof, q_index, column;
+  T coefficient;
 };
 
 // One row's topology and parameters, shared by every copy.
@@ -29,11 +40,17 @@ struct JointRowSpec {
   int dof;
   int q_index;  // the DOF's entry in q; for a Spherical DOF its quaternion's (w, x, y, z)
   int column;  // index of the DOF among the distinct row DOFs
-  T a = 0, b = 0;  // PositionLimit: lower, upper; VelocityLimit: v_max; Friction: friction force; Mimic: offset
-  // Mimic: the second DOF B of J = e_dof + gear e_B, its entry in q and its
-  // column; -1 for the other kinds.
-  int dof2 = -1, q_index2 = -1, column2 = -1;
-  T gear = 0;
+  // PositionLimit, TendonLimit: lower, upper; VelocityLimit: v_max; Friction: friction force; Mimic: offset;
+  // TendonSpring: -(rest length + offset)
+  T a = 0, b = 0;
+  // A row on several DOFs (Mimic: (A, 1), (B, G); a tendon's: its joints):
+  // J / sigma = sum of coefficient e_dof over the terms, dof, q_index and
+  // column being the first term's. Empty for the one-DOF rows, J / sigma =
+  // e_dof.
+  std::vector<RowTerm<T>> terms{};
+  // TendonSpring: the spring's stiffness and damping; TendonLimit: the
+  // limit's stiffness (0: a hard limit).
+  T stiffness = 0, damping = 0;
   // A Spherical DOF's limits: the component of log(q) they bound (0, 1, 2);
   // -1 for a 1-DOF joint's, whose position is q[q_index].
   int rotation_axis = -1;
@@ -42,13 +59,15 @@ struct JointRowSpec {
   T range_lower = -std::numeric_limits<T>::infinity(), range_upper = std::numeric_limits<T>::infinity();
 };
 
-// Per block: the rows, each row's sign, and the columns Mt^-1 e_k.
+// Per block: the rows, each row's sign and compliance, and the columns
+// Mt^-1 e_k.
 template <class L>
 struct JointRowScratch {
   RowBlock<L> rows;
-  std::vector<L> sigma;    // (m)
+  std::vector<L> sigma;  // (m)
+  std::vector<lane::scalar_t<L>> compliance;  // (m) added to D's diagonal: a spring row's (0: rigid)
   std::vector<L> columns;  // (ncolumn x nv)
-  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), columns(ncolumn * nv) {}
+  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), compliance(m), columns(ncolumn * nv) {}
 };
 
 // A Friction row's impulse bound over the (sub)step dt: its DOF's Coulomb
@@ -59,11 +78,30 @@ inline L friction_impulse_bound(const JointRowSpec<lane::scalar_t<L>>& spec, con
   return lane::load<L>(friction + spec.dof * lane::width_v<L>) * L(dt);
 }
 
-// J_r x / sigma_r for a vector x (nv) over the DOFs: x[dof], plus
-// G x[dof2] for a mimic row.
+// sum_i c_i value(term_i) over the terms of a row on several DOFs, in
+// their order.
+template <class L, class T, class Value>
+LOCKSTEP_INLINE L sum_terms(const std::vector<RowTerm<T>>& terms, Value value) {
+  L sum = L(terms[0].coefficient) * value(terms[0]);
+  for (std::size_t i = 1; i < terms.size(); ++i) sum = lane::fmadd(L(terms[i].coefficient), value(terms[i]), sum);
+  return sum;
+}
+
+// J_r x / sigma_r for a vector x (nv) over the DOFs: x[dof], or the sum
+// over a row's terms.
 template <class T, class L>
 LOCKSTEP_INLINE L joint_row_dofs(const JointRowSpec<T>& spec, const L* x) {
-  return spec.dof2 < 0 ? x[spec.dof] : lane::fmadd(L(spec.gear), x[spec.dof2], x[spec.dof]);
+  if (spec.terms.empty()) return x[spec.dof];
+  return sum_terms<L>(spec.terms, [&](const RowTerm<T>& t) { return x[t.dof]; });
+}
+
+// sum_i c_i q_i over a row's terms: a tendon's length, or a mimic's
+// q_A + G q_B.
+template <class L>
+LOCKSTEP_INLINE L row_terms_position(const JointRowSpec<lane::scalar_t<L>>& spec, const lane::scalar_t<L>* q) {
+  using T = lane::scalar_t<L>;
+  constexpr std::size_t W = lane::width_v<L>;
+  return sum_terms<L>(spec.terms, [&](const RowTerm<T>& t) { return lane::load<L>(q + t.q_index * W); });
 }
 
 // Component `axis` of the rotation vector of the quaternion at q: out of
@@ -89,6 +127,7 @@ template <class L>
 struct JointRow {
   L sigma, error, target, target_hi, lo, hi, v_free;
   bool positional;
+  lane::scalar_t<L> compliance = 0;  // a spring row's, added to its diagonal of D
   // Per lane: true where the row needs no impulse at its free velocity.
   lane::mask_t<L> at_rest() const { return row_at_rest(v_free, target, target_hi, lo, hi, error, positional); }
 };
@@ -99,7 +138,6 @@ template <class L>
 LOCKSTEP_INLINE JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spec, const lane::scalar_t<L>* q, const L* v_free,
                              const lane::scalar_t<L>* friction, lane::scalar_t<L> dt, lane::scalar_t<L> erp) {
   using T = lane::scalar_t<L>;
-  constexpr std::size_t W = lane::width_v<L>;
   const T inf = std::numeric_limits<T>::infinity();
   const L one(T(1)), zero(T(0));
   const L u = joint_row_dofs(spec, v_free);
@@ -111,25 +149,47 @@ LOCKSTEP_INLINE JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spe
       // violated branch asks for the share erp of it back per step,
       // J u = -erp e / dt, from either side (and TGS, advancing the error
       // past zero, for the overshoot back at once).
-      const L qa = lane::load<L>(q + spec.q_index * W), qb = lane::load<L>(q + spec.q_index2 * W);
-      const L e = lane::fmadd(L(spec.gear), qb, qa) + L(spec.a);
+      const L e = row_terms_position<L>(spec, q) + L(spec.a);
       row.sigma = lane::select(e > zero, -one, one);
       row.error = row.sigma * e;
       row.target = row.target_hi = positional_target(row.error, L(T(1) / dt), L(erp / dt));
       row.positional = true;
       break;
     }
-    case JointRowKind::PositionLimit: {
+    case JointRowKind::TendonSpring: {
+      // Backward Euler of the force f = -k (l + dt J u - l_ref) - c J u
+      // over the step: its impulse lambda = dt f gives
+      //   J u + lambda / (dt (k dt + c)) = -k (l - l_ref) / (k dt + c),
+      // an equality whose compliance joins D's diagonal (build_round), as a
+      // compliant contact's (contact_rows.hpp). The target does not follow
+      // the position: TGS keeps it through its substeps.
+      const L e = row_terms_position<L>(spec, q) + L(spec.a);
+      const T rate = spec.stiffness * dt + spec.damping;  // > 0: the row exists only then
+      row.target = row.target_hi = L(-spec.stiffness / rate) * e;
+      row.compliance = T(1) / (dt * rate);
+      break;
+    }
+    case JointRowKind::PositionLimit:
+    case JointRowKind::TendonLimit: {
       // the limit nearer to where the free motion ends the step: a fast
       // joint heading for the far limit of a narrow range meets that one
-      const L qk = joint_row_position<L>(spec, q);
-      const L q_free = lane::fmadd(L(dt), u, qk);
-      const auto lower = q_free - L(spec.a) < L(spec.b) - q_free;
+      // (a tendon's limits: on its length). With a limit stiffness k (a
+      // tendon's) the impulse past it is lambda = dt k (-e - dt sigma J u)
+      // where positive: sigma J u + lambda / (k dt^2) >= -e / dt, a
+      // compliant one-sided row.
+      const L x = spec.terms.empty() ? joint_row_position<L>(spec, q) : row_terms_position<L>(spec, q);
+      const L x_free = lane::fmadd(L(dt), u, x);
+      const auto lower = x_free - L(spec.a) < L(spec.b) - x_free;
       row.sigma = lane::select(lower, one, -one);
-      row.error = lane::select(lower, qk - L(spec.a), L(spec.b) - qk);
-      row.target = row.target_hi = positional_target(row.error, L(T(1) / dt), L(erp / dt));
+      row.error = lane::select(lower, x - L(spec.a), L(spec.b) - x);
       row.lo = zero;
-      row.positional = true;
+      if (spec.stiffness == T(0)) {
+        row.target = row.target_hi = positional_target(row.error, L(T(1) / dt), L(erp / dt));
+        row.positional = true;
+      } else {
+        row.target = row.target_hi = -row.error * L(T(1) / dt);
+        row.compliance = T(1) / (spec.stiffness * dt * dt);
+      }
       break;
     }
     case JointRowKind::VelocityLimit: {
@@ -193,7 +253,9 @@ inline L row_speed_bound(const JointRowSpec<lane::scalar_t<L>>& spec, const L& e
   using T = lane::scalar_t<L>;
   const L inf(std::numeric_limits<T>::infinity()), zero(T(0));
   switch (spec.kind) {
-    case JointRowKind::Mimic: return inf;
+    case JointRowKind::Mimic:
+    case JointRowKind::TendonSpring:
+    case JointRowKind::TendonLimit: return inf;  // rows on several DOFs are never held
     case JointRowKind::PositionLimit: return error * L(T(1) / (T(4) * h));
     case JointRowKind::VelocityLimit: return L(spec.a);
     case JointRowKind::Friction: break;
@@ -222,7 +284,7 @@ bool joint_rows_all_at_rest(const std::vector<JointRowSpec<lane::scalar_t<L>>>& 
     } else if (spec.kind == JointRowKind::Friction) {
       impulse_bound = friction_impulse_bound<L>(spec, friction, dt);
     }
-    if (spec.dof2 < 0 &&
+    if (spec.terms.empty() &&
         lane::all<L>(lane::abs(v_free[spec.dof]) <= row_speed_bound<L>(spec, error, impulse_bound, dt)))
       continue;
     const JointRow<L> row = joint_row<L>(spec, q, v_free, friction, dt, erp);
@@ -247,6 +309,7 @@ lane::mask_t<L> build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L
     slack[r] = row.at_rest();
     all_slack = all_slack && slack[r];
     s.sigma[r] = row.sigma;
+    s.compliance[r] = row.compliance;
     rows.error[r] = row.error;
     rows.target[r] = row.target;
     rows.target_hi[r] = row.target_hi;
@@ -326,12 +389,13 @@ void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const JointRowC
 }
 
 // Entry k of Mt^-1 J_c^T / sigma_c for joint row c: (Mt^-1)_{k, dof_c},
-// plus G (Mt^-1)_{k, dof2_c} for a mimic row, off its columns
+// or the sum over a row's terms of c_i (Mt^-1)_{k, dof_i}, off its columns
 // (joint_row_columns).
 template <class L>
 inline L joint_row_response(const JointRowSpec<lane::scalar_t<L>>& spec, const JointRowScratch<L>& s, int nv, int k) {
-  const L x = s.columns[spec.column * nv + k];
-  return spec.dof2 < 0 ? x : lane::fmadd(L(spec.gear), s.columns[spec.column2 * nv + k], x);
+  using T = lane::scalar_t<L>;
+  if (spec.terms.empty()) return s.columns[spec.column * nv + k];
+  return sum_terms<L>(spec.terms, [&](const RowTerm<T>& t) { return s.columns[t.column * nv + k]; });
 }
 
 // Entry (r, c) of the joint rows' block of the Delassus matrix,
@@ -342,15 +406,19 @@ inline L joint_row_response(const JointRowSpec<lane::scalar_t<L>>& spec, const J
 template <class L>
 inline L joint_row_delassus(const std::vector<JointRowSpec<lane::scalar_t<L>>>& specs, const JointRowScratch<L>& s,
                             int nv, int r, int c) {
-  const JointRowSpec<lane::scalar_t<L>>& row = specs[r];
-  const L at_dof = joint_row_response(specs[c], s, nv, row.dof);
-  const L J = row.dof2 < 0 ? at_dof : lane::fmadd(L(row.gear), joint_row_response(specs[c], s, nv, row.dof2), at_dof);
+  using T = lane::scalar_t<L>;
+  const JointRowSpec<T>& row = specs[r];
+  const L J = row.terms.empty() ? joint_row_response(specs[c], s, nv, row.dof)
+                                : sum_terms<L>(row.terms, [&](const RowTerm<T>& t) {
+                                    return joint_row_response(specs[c], s, nv, t.dof);
+                                  });
   return s.sigma[r] * s.sigma[c] * J;
 }
 
 // out[k] += sum_i x_i (Mt^-1 J_r^T)[k] over the rows r = rows[i], i <
-// count, in that order (sigma_r (Mt^-1 e_{dof_r})[k], and a mimic row's
-// G times its second column): the velocity change of impulses x (lambda),
+// count, in that order (sigma_r (Mt^-1 e_{dof_r})[k], or for a row on
+// several DOFs each term's c_i times its column): the velocity change of
+// impulses x (lambda),
 // or the displacement of lambda_sum. Their columns must be built
 // (joint_row_columns).
 template <class L>
@@ -360,12 +428,12 @@ void add_row_impulses(const KernelModel<lane::scalar_t<L>>& km, const std::vecto
   for (int i = 0; i < count; ++i) {
     const int r = rows[i];
     const L scaled = s.sigma[r] * x[i];
-    const L* column = &s.columns[specs[r].column * nv];
-    for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(scaled, column[k], out[k]);
-    if (specs[r].dof2 < 0) continue;
-    const L second = scaled * L(specs[r].gear);
-    column = &s.columns[specs[r].column2 * nv];
-    for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(second, column[k], out[k]);
+    auto add_column = [&](const L& weight, int c) {
+      const L* column = &s.columns[c * nv];
+      for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(weight, column[k], out[k]);
+    };
+    if (specs[r].terms.empty()) add_column(scaled, specs[r].column);
+    for (const RowTerm<lane::scalar_t<L>>& t : specs[r].terms) add_column(scaled * L(t.coefficient), t.column);
   }
 }
 

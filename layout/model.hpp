@@ -47,6 +47,30 @@ struct Mimic {
   double offset = 0.0;
 };
 
+// A fixed tendon (PhysX's fixed tendon): its length is a weighted sum of
+// joint positions, l = sum_i c_i q_i over revolute and prismatic joints. A
+// spring-damper pulls l towards rest_length + offset, and its limits keep l
+// within [lower_limit, upper_limit]: hard one-sided rows with
+// limit_stiffness 0, springs of that stiffness past them otherwise. The
+// simulation step holds it with solver rows (Stage::FixedTendons,
+// docs/conventions.md "Fixed tendons"); the dynamics queries ignore it.
+struct TendonJoint {
+  int dof = -1;
+  double coefficient = 1.0;  // c_i: length per unit of the joint's position (m/rad, or m/m)
+};
+
+struct FixedTendon {
+  std::string name;
+  std::vector<TendonJoint> joints;
+  double stiffness = 0.0;  // force per unit length past rest_length + offset (0: no spring)
+  double damping = 0.0;    // force per unit of the length's rate (0: no damper)
+  double rest_length = 0.0;
+  double offset = 0.0;     // added to rest_length: PhysX's offset, the tendon's actuation
+  double lower_limit = -std::numeric_limits<double>::infinity();
+  double upper_limit = std::numeric_limits<double>::infinity();
+  double limit_stiffness = 0.0;  // 0: hard limits; > 0: a spring of this stiffness past a limit
+};
+
 struct Articulation {
   std::string name;
   bool floating_base = false;
@@ -111,6 +135,7 @@ struct Model {
 
   std::vector<Shape> shapes;
   std::vector<Mimic> mimics;
+  std::vector<FixedTendon> fixed_tendons;
   std::vector<Articulation> articulations;
 
   // Name lookups; each throws std::out_of_range naming the missing name.

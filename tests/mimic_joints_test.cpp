@@ -161,21 +161,7 @@ TEST(MimicJoints, PandasFingersMoveTogetherAndTheirLimitsHold) {
 TEST(MimicJoints, SimdLanesMatchTheScalarPath) {
   const Model model = load_shared_model("panda", false);
   const std::vector<DofSettings> dofs = limited_dofs(model, 0.5, 1.0);
-  for (Precision precision : {Precision::Float, Precision::Double})
-    for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
-      StepOptions o = scene_options(precision, solver);
-      const std::vector<unsigned> seeds = seed_range(19, 40);
-      o.lanes = Lanes::Simd;
-      Simulator simd = simulator_with_inputs(model, dofs, o, seeds);
-      o.lanes = Lanes::Scalar;
-      Simulator scalar = simulator_with_inputs(model, dofs, o, seeds);
-      simd.step(20);
-      scalar.step(20);
-      EXPECT_GT(copies_with_impulses(simd), 0);
-      for (int c = 0; c < simd.copies(); ++c)
-        EXPECT_TRUE(same_state(simd, c, scalar, c))
-            << precision_name(precision) << " " << solver_name(solver) << ", copy " << c;
-    }
+  expect_simd_lanes_match_the_scalar_path(model, dofs, 19, 40u, 20);
 }
 
 // Tags added or edited in a Model by hand are checked as the step takes

@@ -225,4 +225,27 @@ inline Simulator simulator_with_inputs(const Model& model, const std::vector<Dof
   return sim;
 }
 
+// The SIMD lanes give the scalar path's bits: `copies` copies with the
+// inputs of seeds first, first + 1, ... (padding lanes in the last block
+// where copies is not a multiple of the width), `steps` steps with PGS and
+// TGS in float and double, the solver pushing somewhere.
+inline void expect_simd_lanes_match_the_scalar_path(const Model& model, const std::vector<DofSettings>& dofs,
+                                                    int copies, unsigned first, int steps) {
+  for (Precision precision : {Precision::Float, Precision::Double})
+    for (SolverType solver : {SolverType::PGS, SolverType::TGS}) {
+      StepOptions o = scene_options(precision, solver);
+      const std::vector<unsigned> seeds = seed_range(copies, first);
+      o.lanes = Lanes::Simd;
+      Simulator simd = simulator_with_inputs(model, dofs, o, seeds);
+      o.lanes = Lanes::Scalar;
+      Simulator scalar = simulator_with_inputs(model, dofs, o, seeds);
+      simd.step(steps);
+      scalar.step(steps);
+      EXPECT_GT(copies_with_impulses(simd), 0);
+      for (int c = 0; c < simd.copies(); ++c)
+        EXPECT_TRUE(same_state(simd, c, scalar, c))
+            << precision_name(precision) << " " << solver_name(solver) << ", copy " << c;
+    }
+}
+
 }  // namespace lockstep::test

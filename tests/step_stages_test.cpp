@@ -54,15 +54,23 @@ std::vector<DofSettings> scene_dofs(const Model& model, Stage unused) {
 }
 
 // anymal_b floating with link damping on every body but the base (its
-// legs' linear 0.3 and angular 0.6 per second) and the right hind knee
-// mimicking the left front one (multiplier -1, offset 0.1), unless
-// `unused` is the stage.
+// legs' linear 0.3 and angular 0.6 per second), the right hind knee
+// mimicking the left front one (multiplier -1, offset 0.1) and a tendon
+// tying the hind hips' flexion (a spring and length limits of +-0.2),
+// unless `unused` is the stage.
 Model scene_model(Stage unused) {
   Model model = test::load_shared_model("anymal_b", true);
   if (unused != Stage::LinkDamping)
     for (int b = 1; b < model.nbody; ++b) model.body_linear_damping[b] = 0.3, model.body_angular_damping[b] = 0.6;
   if (unused != Stage::MimicJoints)
     model.mimics.push_back({model.dof_index("RH_KFE"), model.dof_index("LF_KFE"), -1.0, 0.1});
+  if (unused != Stage::FixedTendons) {
+    FixedTendon hips;
+    hips.name = "hind hips";
+    hips.joints = {{model.dof_index("LH_HFE"), 1.0}, {model.dof_index("RH_HFE"), -1.0}};
+    hips.stiffness = 20.0, hips.damping = 0.5, hips.lower_limit = -0.2, hips.upper_limit = 0.2;
+    model.fixed_tendons.push_back(hips);
+  }
   return model;
 }
 
