@@ -468,14 +468,74 @@ void read_link_damping(const json::Value& v, const At& at, Model& model) {
 
 // A DOF named as `lockstep info` lists them ("knee", "ball[1]"), not a
 // floating base's.
-int actuated_dof(const Model& model, const std::string& name, const At& at) {
+// The member `key` of o, which must be there.
+const json::Value& required_member(const Object& o, const char* key) {
+  const json::Value* value = o.find(key);
+  if (!value) o.at().fail(std::string("missing key \"") + key + "\"");
+  return *value;
+}
+
+int named_dof(const Model& model, const std::string& name, const At& at) {
   const auto it = model.dof_by_name.find(name);
   if (it == model.dof_by_name.end())
     at.fail("unknown joint \"" + name + "\"" + did_you_mean(name, model.dof_name) +
             " (run `lockstep info` to list the joints)");
-  if (model.body_joint[model.dof_body[it->second]] == JointType::Free)
-    at.fail("joint \"" + name + "\" is the floating base: it takes no actuator");
   return it->second;
+}
+
+int actuated_dof(const Model& model, const std::string& name, const At& at) {
+  const int dof = named_dof(model, name, at);
+  if (model.body_joint[model.dof_body[dof]] == JointType::Free)
+    at.fail("joint \"" + name + "\" is the floating base: it takes no actuator");
+  return dof;
+}
+
+// "fixed_tendons": Model::fixed_tendons, in order; each names its joints
+// with their coefficients, "limits" being [lower, upper] with null for no
+// limit on that side.
+void read_fixed_tendons(const json::Value& v, const At& at, Model& model) {
+  expect_type(v, json::Value::Type::Array, at, "an array of fixed tendons");
+  for (std::size_t i = 0; i < v.array.size(); ++i) {
+    const Object o(v.array[i], at.index(i),
+                   {"name", "joints", "stiffness", "damping", "rest_length", "offset", "limits", "limit_stiffness"});
+    FixedTendon t;
+    t.name = read_string(required_member(o, "name"), o.at("name"));
+    if (t.name.empty()) o.at("name").fail("must not be empty");
+    for (const FixedTendon& other : model.fixed_tendons)
+      if (other.name == t.name) o.at("name").fail("\"" + t.name + "\" names another fixed tendon");
+    const json::Value& joints = required_member(o, "joints");
+    expect_type(joints, json::Value::Type::Object, o.at("joints"), "an object of coefficients keyed by joint name");
+    if (joints.object.empty()) o.at("joints").fail("must name at least one joint");
+    for (const auto& [name, coefficient] : joints.object) {
+      const At joint_at = o.at("joints").key(name);
+      const int dof = named_dof(model, name, joint_at);
+      const JointType type = model.body_joint[model.dof_body[dof]];
+      if (type != JointType::Revolute && type != JointType::Prismatic)
+        joint_at.fail("\"" + name + "\" is a DOF of a " + joint_type_name(type) +
+                      " joint: a tendon spans revolute and prismatic joints");
+      const double c = read_number(coefficient, joint_at);
+      if (c == 0.0) joint_at.fail("the coefficient must not be zero");
+      t.joints.push_back({dof, c});
+    }
+    o.with("stiffness",
+           [&](const json::Value& x, const At& k) { t.stiffness = read_number(x, k, Bound::NonNegative); });
+    o.with("damping", [&](const json::Value& x, const At& k) { t.damping = read_number(x, k, Bound::NonNegative); });
+    o.with("rest_length", [&](const json::Value& x, const At& k) { t.rest_length = read_number(x, k); });
+    o.with("offset", [&](const json::Value& x, const At& k) { t.offset = read_number(x, k); });
+    o.with("limit_stiffness",
+           [&](const json::Value& x, const At& k) { t.limit_stiffness = read_number(x, k, Bound::NonNegative); });
+    o.with("limits", [&](const json::Value& x, const At& k) {
+      expect_type(x, json::Value::Type::Array, k, "[lower, upper], null for no limit");
+      if (x.array.size() != 2) k.fail("expected 2 values, got " + std::to_string(x.array.size()));
+      auto side = [&](std::size_t j, double none) {
+        return x.array[j].type == json::Value::Type::Null ? none : read_number(x.array[j], k.index(j));
+      };
+      t.lower_limit = side(0, -Model::kInfinity);
+      t.upper_limit = side(1, Model::kInfinity);
+      if (t.lower_limit > t.upper_limit) k.fail("the lower limit lies above the upper");
+    });
+    model.fixed_tendons.push_back(std::move(t));
+  }
 }
 
 // "actuators": motors behind gearboxes (batch/actuators.hpp), in order.
@@ -485,17 +545,12 @@ void read_actuators(const json::Value& v, const At& at, const Model& model, std:
     const Object o(v.array[i], at.index(i),
                    {"name", "joint", "gear", "couplings", "torque_constant", "bus_voltage", "resistance",
                     "velocity_constant", "peak_torque", "enforce_operating_region"});
-    auto required = [&](const char* key) -> const json::Value& {
-      const json::Value* value = o.find(key);
-      if (!value) o.at().fail(std::string("missing key \"") + key + "\"");
-      return *value;
-    };
     Actuator a;
-    a.name = read_string(required("name"), o.at("name"));
+    a.name = read_string(required_member(o, "name"), o.at("name"));
     if (a.name.empty()) o.at("name").fail("must not be empty");
     for (const Actuator& other : actuators)
       if (other.name == a.name) o.at("name").fail("\"" + a.name + "\" names another actuator");
-    a.dof = actuated_dof(model, read_string(required("joint"), o.at("joint")), o.at("joint"));
+    a.dof = actuated_dof(model, read_string(required_member(o, "joint"), o.at("joint")), o.at("joint"));
     o.with("gear", [&](const json::Value& x, const At& k) { a.gear = read_number(x, k, Bound::Positive); });
     o.with("couplings", [&](const json::Value& x, const At& k) {
       expect_type(x, json::Value::Type::Object, k, "an object of ratios keyed by joint name");
@@ -505,10 +560,11 @@ void read_actuators(const json::Value& v, const At& at, const Model& model, std:
         a.couplings.emplace_back(dof, read_number(ratio, k.key(name)));
       }
     });
-    a.torque_constant = read_number(required("torque_constant"), o.at("torque_constant"), Bound::Positive);
-    a.bus_voltage = read_number(required("bus_voltage"), o.at("bus_voltage"), Bound::Positive);
-    a.resistance = read_number(required("resistance"), o.at("resistance"), Bound::Positive);
-    a.velocity_constant = read_number(required("velocity_constant"), o.at("velocity_constant"), Bound::Positive);
+    a.torque_constant = read_number(required_member(o, "torque_constant"), o.at("torque_constant"), Bound::Positive);
+    a.bus_voltage = read_number(required_member(o, "bus_voltage"), o.at("bus_voltage"), Bound::Positive);
+    a.resistance = read_number(required_member(o, "resistance"), o.at("resistance"), Bound::Positive);
+    a.velocity_constant =
+        read_number(required_member(o, "velocity_constant"), o.at("velocity_constant"), Bound::Positive);
     // null: no peak torque
     o.with("peak_torque", [&](const json::Value& x, const At& k) {
       a.peak_torque = x.type == json::Value::Type::Null ? Model::kInfinity : read_number(x, k, Bound::Positive);
@@ -646,9 +702,9 @@ void read_randomization(const json::Value& v, const At& at, Randomization& r) {
 // ---- the whole file
 
 const std::vector<std::string> kTopKeys = {
-    "model",    "floating_base", "gravity", "links_without_gravity", "link_damping", "initial_state", "drive_targets",
-    "ground",   "boxes",         "contacts", "drives",               "joint_dynamics", "actuators",   "step",
-    "env",      "randomization"};
+    "model",    "floating_base", "gravity",  "links_without_gravity", "link_damping",   "fixed_tendons", "initial_state",
+    "drive_targets", "ground",   "boxes",    "contacts",              "drives",         "joint_dynamics", "actuators",
+    "step",     "env",           "randomization"};
 
 // The model path: relative paths from the scene file's folder.
 std::string resolve_model_path(const std::string& scene_path, const Object& root) {
@@ -723,6 +779,7 @@ Scene read_scene_file(const std::string& path, bool floating_base, bool ground) 
   root.with("links_without_gravity",
             [&](const json::Value& v, const At& at) { read_links_without_gravity(v, at, model); });
   root.with("link_damping", [&](const json::Value& v, const At& at) { read_link_damping(v, at, model); });
+  root.with("fixed_tendons", [&](const json::Value& v, const At& at) { read_fixed_tendons(v, at, model); });
   root.with("initial_state",
             [&](const json::Value& v, const At& at) { read_initial_state(v, at, model, env, scene.value_warnings); });
   root.with("drive_targets",
@@ -1115,6 +1172,24 @@ json::Value actuators_value(const Model& model, const std::vector<Actuator>& act
   return array_value(std::move(items));
 }
 
+json::Value fixed_tendons_value(const Model& model) {
+  std::vector<json::Value> items;
+  auto limit = [](double x) { return std::isinf(x) ? json::Value{} : number_value(x); };  // none: null
+  for (const FixedTendon& t : model.fixed_tendons) {
+    std::vector<Member> joints;
+    for (const TendonJoint& j : t.joints) joints.emplace_back(model.dof_name[j.dof], number_value(j.coefficient));
+    items.push_back(object_value({{"name", string_value(t.name)},
+                                  {"joints", object_value(std::move(joints))},
+                                  {"stiffness", number_value(t.stiffness)},
+                                  {"damping", number_value(t.damping)},
+                                  {"rest_length", number_value(t.rest_length)},
+                                  {"offset", number_value(t.offset)},
+                                  {"limits", array_value({limit(t.lower_limit), limit(t.upper_limit)})},
+                                  {"limit_stiffness", number_value(t.limit_stiffness)}}));
+  }
+  return array_value(std::move(items));
+}
+
 std::string scene_to_json(const Scene& scene) {
   const Model& model = scene.model;
   const VecEnvOptions& env = scene.env;
@@ -1133,6 +1208,7 @@ std::string scene_to_json(const Scene& scene) {
                           object_value({{"linear", number_value(model.body_linear_damping[b])},
                                         {"angular", number_value(model.body_angular_damping[b])}}));
   if (!damped.empty()) m.emplace_back("link_damping", object_value({{"links", object_value(std::move(damped))}}));
+  if (!model.fixed_tendons.empty()) m.emplace_back("fixed_tendons", fixed_tendons_value(model));
   if (env.initial_q.size() > 0 || env.initial_v.size() > 0)
     m.emplace_back("initial_state", initial_state_value(model, env));
   if (env.drive_target_q.size() > 0) {

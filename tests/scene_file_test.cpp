@@ -142,6 +142,20 @@ void expect_same_scene(const Scene& a, const Scene& b) {
                        y.velocity_constant, y.peak_torque, y.enforce_operating_region))
         << "actuator " << i;
   }
+  ASSERT_EQ(a.model.fixed_tendons.size(), b.model.fixed_tendons.size());
+  for (std::size_t i = 0; i < a.model.fixed_tendons.size(); ++i) {
+    const FixedTendon &x = a.model.fixed_tendons[i], &y = b.model.fixed_tendons[i];
+    EXPECT_EQ(x.name, y.name) << "fixed tendon " << i;
+    ASSERT_EQ(x.joints.size(), y.joints.size()) << "fixed tendon " << i;
+    for (std::size_t j = 0; j < x.joints.size(); ++j) {
+      EXPECT_EQ(x.joints[j].dof, y.joints[j].dof) << "fixed tendon " << i << ", joint " << j;
+      EXPECT_BITS(x.joints[j].coefficient, y.joints[j].coefficient);
+    }
+    for (const auto field : {&FixedTendon::stiffness, &FixedTendon::damping, &FixedTendon::rest_length,
+                             &FixedTendon::offset, &FixedTendon::lower_limit, &FixedTendon::upper_limit,
+                             &FixedTendon::limit_stiffness})
+      EXPECT_BITS(x.*field, y.*field);
+  }
   expect_same_step(a.env.step, b.env.step);
   ASSERT_EQ(a.env.dofs.size(), b.env.dofs.size());
   for (std::size_t k = 0; k < a.env.dofs.size(); ++k)
@@ -182,6 +196,11 @@ std::string full_scene(const std::string& model) {
   "floating_base": true,
   "gravity": [0.1, 0, -9.7],
   "links_without_gravity": ["FL_shank", "base"],
+  "fixed_tendons": [
+    {"name": "front knees", "joints": {"FL_knee": 1, "FR_knee": -0.5}, "stiffness": 30, "damping": 0.5, "rest_length": 0.1,
+     "offset": -0.05, "limits": [null, 0.4], "limit_stiffness": 200},
+    {"name": "hind hip", "joints": {"HL_hip_flex": 2}, "limits": [-0.3, 0.2]}
+  ],
   "initial_state": {
     "q": {"quadruped_root": [0.1, 0.2, 0.4, 0, 0, 0, 1], "FL_knee": -1.1, "HR_hip_flex": 0.3},
     "qd": {"quadruped_root": [0.1, 0, 0, 0, 0, 0.2], "FL_knee": 0.3}
@@ -266,6 +285,26 @@ TEST_F(SceneFile, EveryKeyLandsInItsField) {
     const std::string& link = m.frame_name[m.body_frame[b]];
     EXPECT_EQ(m.body_gravity[b], link == "FL_shank" || link == "base" ? 0 : 1) << link;
   }
+  // fixed tendons: in order, joints by name in the file's order, the
+  // defaults where not given
+  ASSERT_EQ(m.fixed_tendons.size(), 2u);
+  const FixedTendon& knees = m.fixed_tendons[0];
+  EXPECT_EQ(knees.name, "front knees");
+  ASSERT_EQ(knees.joints.size(), 2u);
+  EXPECT_EQ(knees.joints[0].dof, dof(m, "FL_knee"));
+  EXPECT_EQ(knees.joints[0].coefficient, 1);
+  EXPECT_EQ(knees.joints[1].dof, dof(m, "FR_knee"));
+  EXPECT_EQ(knees.joints[1].coefficient, -0.5);
+  EXPECT_EQ(std::tie(knees.stiffness, knees.damping, knees.rest_length, knees.offset, knees.upper_limit,
+                     knees.limit_stiffness),
+            std::make_tuple(30.0, 0.5, 0.1, -0.05, 0.4, 200.0));
+  EXPECT_EQ(knees.lower_limit, -Model::kInfinity);
+  const FixedTendon& hind = m.fixed_tendons[1];
+  ASSERT_EQ(hind.joints.size(), 1u);
+  EXPECT_EQ(hind.joints[0].dof, dof(m, "HL_hip_flex"));
+  EXPECT_EQ(std::tie(hind.stiffness, hind.damping, hind.rest_length, hind.offset, hind.lower_limit, hind.upper_limit,
+                     hind.limit_stiffness),
+            std::make_tuple(0.0, 0.0, 0.0, 0.0, -0.3, 0.2, 0.0));
   // actuators: in order, joints by name, the defaults where not given
   ASSERT_EQ(e.step.actuators.size(), 2u);
   const Actuator& knee = e.step.actuators[0];
@@ -838,6 +877,27 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"gravity_link_twice", R"(, "links_without_gravity": ["FL_shank", "FL_shank"])",
                  {"links_without_gravity[1]: link \"FL_shank\" is listed twice"}},
         BadScene{"actuators_not_an_array", R"(, "actuators": {})", {"actuators: expected an array of actuators"}},
+        BadScene{"tendon_missing_joints", R"(, "fixed_tendons": [{"name": "t"}])",
+                 {"fixed_tendons[0]: missing key \"joints\""}},
+        BadScene{"tendon_no_joints", R"(, "fixed_tendons": [{"name": "t", "joints": {}}])",
+                 {"fixed_tendons[0].joints: must name at least one joint"}},
+        BadScene{"tendon_unknown_joint", R"(, "fixed_tendons": [{"name": "t", "joints": {"FL_knie": 1}}])",
+                 {"fixed_tendons[0].joints.FL_knie: unknown joint \"FL_knie\" (did you mean \"FL_knee\"?)"}},
+        BadScene{"tendon_floating_root", R"(, "fixed_tendons": [{"name": "t", "joints": {"quadruped_root[0]": 1}}])",
+                 {"fixed_tendons[0].joints.quadruped_root[0]: \"quadruped_root[0]\" is a DOF of a free joint: a tendon spans"}},
+        BadScene{"tendon_zero_coefficient", R"(, "fixed_tendons": [{"name": "t", "joints": {"FL_knee": 0}}])",
+                 {"fixed_tendons[0].joints.FL_knee: the coefficient must not be zero"}},
+        BadScene{"tendon_negative_stiffness",
+                 R"(, "fixed_tendons": [{"name": "t", "joints": {"FL_knee": 1}, "stiffness": -1}])",
+                 {"fixed_tendons[0].stiffness: must be >= 0"}},
+        BadScene{"tendon_reversed_limits",
+                 R"(, "fixed_tendons": [{"name": "t", "joints": {"FL_knee": 1}, "limits": [0.5, 0.1]}])",
+                 {"fixed_tendons[0].limits: the lower limit lies above the upper"}},
+        BadScene{"tendon_one_limit", R"(, "fixed_tendons": [{"name": "t", "joints": {"FL_knee": 1}, "limits": [0.5]}])",
+                 {"fixed_tendons[0].limits: expected 2 values, got 1"}},
+        BadScene{"tendon_same_name",
+                 R"(, "fixed_tendons": [{"name": "t", "joints": {"FL_knee": 1}}, {"name": "t", "joints": {"FR_knee": 1}}])",
+                 {"fixed_tendons[1].name: \"t\" names another fixed tendon"}},
         BadScene{"actuator_missing_key",
                  R"(, "actuators": [{"name": "m", "joint": "FL_knee", "bus_voltage": 1, "resistance": 1, "velocity_constant": 1}])",
                  {"actuators[0]: missing key \"torque_constant\""}},

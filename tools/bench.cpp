@@ -500,6 +500,9 @@ std::optional<std::string> mujoco_difference(const Scene& scene) {
   if (!scene.model.mimics.empty())
     return "the scene has mimic joints (" + scene.model.dof_name[scene.model.mimics.front().dof] +
            "), which the MuJoCo peer does not couple";
+  if (!scene.model.fixed_tendons.empty())
+    return "the scene has fixed tendons (" + scene.model.fixed_tendons.front().name +
+           "), which the MuJoCo peer does not model";
   std::optional<std::pair<double, double>> gains;
   for (int k = 0; k < scene.model.nv; ++k) {
     if (scene.model.body_joint[scene.model.dof_body[k]] == JointType::Free) continue;
