@@ -257,6 +257,11 @@ void validate_fixed_tendons(const Model& model, const StepOptions& o) {
   for (std::size_t i = 0; i < model.fixed_tendons.size(); ++i) {
     const FixedTendon& t = model.fixed_tendons[i];
     const std::string where = "Model::fixed_tendons[" + std::to_string(i) + "] ('" + t.name + "'): ";
+    // named by errors, warnings and scene files, which read them back
+    require(!t.name.empty(), where + "has no name");
+    for (std::size_t other = 0; other < i; ++other)
+      require(model.fixed_tendons[other].name != t.name,
+              [&] { return where + "its name is also fixed_tendons[" + std::to_string(other) + "]'s"; });
     require(!t.joints.empty(), where + "has no joints");
     for (std::size_t j = 0; j < t.joints.size(); ++j) {
       const TendonJoint& joint = t.joints[j];
@@ -270,10 +275,12 @@ void validate_fixed_tendons(const Model& model, const StepOptions& o) {
         return at + model.dof_name[joint.dof] + " is a DOF of a " + joint_type_name(type) +
                " joint: a tendon spans revolute and prismatic joints";
       });
-      require(finite_in(o.precision, joint.coefficient) && joint.coefficient != 0.0, [&] {
-        return at + "coefficient must be nonzero and " + finite_word(o.precision) + ", got " +
-               number_text(joint.coefficient);
-      });
+      // nonzero in the precision too: a float flushes 1e-46 to zero
+      require(finite_in(o.precision, joint.coefficient) && std::abs(joint.coefficient) >= smallest_normal(o.precision),
+              [&] {
+                return at + "coefficient must be nonzero, a normal number and " + finite_word(o.precision) +
+                       ", got " + number_text(joint.coefficient);
+              });
       for (std::size_t other = 0; other < j; ++other)
         require(t.joints[other].dof != joint.dof,
                 [&] {
@@ -290,6 +297,15 @@ void validate_fixed_tendons(const Model& model, const StepOptions& o) {
     gain(t.stiffness, "stiffness");
     gain(t.damping, "damping");
     gain(t.limit_stiffness, "limit_stiffness");
+    const double h = o.dt / o.substeps;
+    require(compliance_finite_in(o.precision, h, t.stiffness, t.damping) &&
+                compliance_finite_in(o.precision, h, t.limit_stiffness, 0.0),
+            [&] {
+              return where + "stiffness " + number_text(t.stiffness) + ", damping " + number_text(t.damping) +
+                     " and limit_stiffness " + number_text(t.limit_stiffness) + " must each be 0 or large enough " +
+                     "that h (k h + c) over the step h = " + number_text(h) + " s is a normal number in " +
+                     precision_name(o.precision) + " (their compliance 1 / that would be infinite)";
+            });
     require(finite_in(o.precision, t.rest_length) && finite_in(o.precision, t.offset), [&] {
       return where + "rest_length and offset must be " + finite_word(o.precision) + ", got " +
              number_text(t.rest_length) + " and " + number_text(t.offset);
@@ -331,6 +347,15 @@ void validate(const Model& model, int copies, const StepOptions& o, const std::v
   validate_link_damping(model, o);
   validate_mimics(model, o);
   validate_fixed_tendons(model, o);
+  // a compliant contact's spring-damper is a compliant row, as a tendon's
+  require(o.contacts.stiffness == 0 ||
+              compliance_finite_in(o.precision, o.dt / o.substeps, o.contacts.stiffness, o.contacts.damping),
+          [&] {
+            return "ContactSettings::stiffness " + number_text(o.contacts.stiffness) + " N/m and damping " +
+                   number_text(o.contacts.damping) + " N s/m are too small for " + precision_name(o.precision) +
+                   ": h (k h + c) over the step h = " + number_text(o.dt / o.substeps) +
+                   " s must be a normal number (the compliance 1 / that would be infinite; stiffness 0 is rigid)";
+          });
   // every copy starts with these: beyond the precision's range each would fault
   require(!o.contacts.ground || finite_in(o.precision, o.contacts.ground_height), [&] {
     return "ContactSettings::ground_height must be " + finite_word(o.precision) + ", got " +
@@ -556,6 +581,11 @@ void Simulator::make_plan() const {
     stribeck += d.friction > 0 && d.friction_model == FrictionModel::Stribeck && one_dof;
     coulomb += d.friction > 0 && d.friction_model == FrictionModel::Coulomb;
   }
+  // a tendon without a spring or a limit has no rows
+  const int acting_tendons = static_cast<int>(
+      std::count_if(model_->fixed_tendons.begin(), model_->fixed_tendons.end(), [](const FixedTendon& t) {
+        return t.stiffness > 0 || t.damping > 0 || std::isfinite(t.lower_limit) || std::isfinite(t.upper_limit);
+      }));
   auto mode = [&](Stage s) { return options_.stages[static_cast<int>(s)]; };
   plan_ = {
       decide(Stage::Drives, mode(Stage::Drives), drives, "DOFs with drive gains",
@@ -573,8 +603,7 @@ void Simulator::make_plan() const {
       decide(Stage::PerCopyJointParameters, mode(Stage::PerCopyJointParameters), copies_with_any(own_joint_parameters_),
              "copies with their own drive gains, damping, armature or joint friction"),
       decide(Stage::MimicJoints, mode(Stage::MimicJoints), static_cast<int>(model_->mimics.size()), "mimic tags"),
-      decide(Stage::FixedTendons, mode(Stage::FixedTendons), static_cast<int>(model_->fixed_tendons.size()),
-             "fixed tendons"),
+      decide(Stage::FixedTendons, mode(Stage::FixedTendons), acting_tendons, "fixed tendons with a spring or limits"),
       decide(Stage::HardLimits, mode(Stage::HardLimits), hard, "DOFs with hard position limits"),
       decide(Stage::VelocityLimits, mode(Stage::VelocityLimits), velocity, "DOFs with velocity limits"),
       decide(Stage::CoulombFriction, mode(Stage::CoulombFriction), coulomb, "DOFs with Coulomb friction"),
@@ -693,7 +722,7 @@ std::string Simulator::unenforced_mimics() const {
 
 std::string Simulator::unenforced_tendons() const {
   const std::vector<FixedTendon>& tendons = model_->fixed_tendons;
-  if (tendons.empty() || plan_[static_cast<int>(Stage::FixedTendons)].runs) return {};
+  if (tendons.empty() || options_.stages[static_cast<int>(Stage::FixedTendons)] != StageMode::Off) return {};
   return "fixed tendons: not enforced, their stage forced off (" + std::to_string(tendons.size()) +
          " tendon(s), such as '" + tendons.front().name + "'; their joints move on their own)";
 }

@@ -148,7 +148,7 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
     for (const Mimic& mimic : model.mimics)
       add_coupled_row(JointRowKind::Mimic, {{mimic.dof, 1.0}, {mimic.leader_dof, -mimic.multiplier}}, -mimic.offset, 0);
   // A tendon's spring where it has stiffness or damping, its limits where
-  // it has one.
+  // it has one (their compliances are finite: validate_fixed_tendons).
   if (plan.fixed_tendons)
     for (const FixedTendon& tendon : model.fixed_tendons) {
       if (tendon.stiffness > 0.0 || tendon.damping > 0.0) {
@@ -157,7 +157,8 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
         row->stiffness = static_cast<T>(tendon.stiffness);
         row->damping = static_cast<T>(tendon.damping);
       }
-      if (std::isfinite(tendon.lower_limit) || std::isfinite(tendon.upper_limit))
+      const bool limited = std::isfinite(tendon.lower_limit) || std::isfinite(tendon.upper_limit);
+      if (limited)
         add_coupled_row(JointRowKind::TendonLimit, tendon.joints, tendon.lower_limit, tendon.upper_limit)->stiffness =
             static_cast<T>(tendon.limit_stiffness);
     }

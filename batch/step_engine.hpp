@@ -43,8 +43,9 @@ struct Simulator::Engine {
   virtual void set_plan(const StepPlan& plan) = 0;
   virtual int copies() const = 0;
   virtual int rows() const = 0;
-  // Each joint row's kind and DOF (and a mimic row's kind and leader DOF
-  // after it), in row order: what the warm start's joint impulses belong to.
+  // Each joint row's kind and DOF (a row on several DOFs: its kind with
+  // minus its number of terms, then its kind with each term's DOF), in row
+  // order: what the warm start's joint impulses belong to.
   virtual std::vector<std::pair<int, int>> row_layout() const = 0;
   virtual std::size_t bytes_per_copy() const = 0;
 };
@@ -69,6 +70,9 @@ class StepEngine final : public Simulator::Engine {
     std::vector<std::pair<int, int>> layout;
     for (const JointRowSpec<T>& row : row_specs_) {
       if (row.terms.empty()) layout.emplace_back(static_cast<int>(row.kind), row.dof);
+      // a row on several DOFs: minus its number of terms, then their DOFs
+      // (tendons over {0, 1} and {2} are not those over {0} and {1, 2})
+      if (!row.terms.empty()) layout.emplace_back(static_cast<int>(row.kind), -static_cast<int>(row.terms.size()));
       for (const RowTerm<T>& term : row.terms) layout.emplace_back(static_cast<int>(row.kind), term.dof);
     }
     return layout;

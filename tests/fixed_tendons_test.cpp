@@ -105,9 +105,9 @@ TEST(FixedTendons, ATendonOnOneJointIsThatJointsSpring) {
 // m_1), so the tendon pulls slider 1 with m_1 a, stretched by
 // l = m_1 F / (k (m_0 + m_1)) once its damping has settled the stretch.
 // From a soft tendon to one a million times stiffer, at dt = 1/60 (the
-// stiff one's period 1.6 ms, far below the step): the stretch matches to
-// 1 % and nothing diverges; the same stiffness as an explicit force would
-// (its k h^2 / m is 2.8e3 > 4). Measured: 4e-14 to 8e-8 of the stretch in
+// stiff one's period 0.4 ms, far below the step): the stretch matches to
+// 1 % and nothing diverges, where the same stiffness as an explicit force
+// would (its k h^2 / m is 5.6e4 > 4 for the 0.5 kg slider). Measured: 4e-14 to 8e-8 of the stretch in
 // double. In float the slider has moved 15 m, whose ulp (1e-6 m) is above
 // the stiffer tendons' stretch (6e-5 m down to 6e-9 m): there the bound
 // adds q's rounding, 4 float eps q_0 (measured 3.5e-7 m at most).
@@ -187,7 +187,7 @@ TEST(FixedTendons, SimdLanesMatchTheScalarPath) {
   FixedTendon hind = tendon({{model.dof_index("LH_HFE"), 0.5},
                              {model.dof_index("LH_KFE"), -1.0},
                              {model.dof_index("RH_KFE"), 0.25}});
-  hind.lower_limit = -0.1, hind.upper_limit = 0.1;
+  hind.name = "hind", hind.lower_limit = -0.1, hind.upper_limit = 0.1;
   model.fixed_tendons = {knees, hind};
   const std::vector<DofSettings> dofs = limited_dofs(model, 0.5, 1.0);
   expect_simd_lanes_match_the_scalar_path(model, dofs, 19, 70u, 20);
@@ -202,7 +202,9 @@ TEST(FixedTendons, ThePlanSaysWhetherTheyAreEnforced) {
   model.fixed_tendons.push_back(t);
   const Simulator on(model, 1);
   EXPECT_TRUE(on.plan()[static_cast<int>(Stage::FixedTendons)].runs);
-  EXPECT_NE(on.describe_plan().find("fixed tendons: runs (1 fixed tendons)"), std::string::npos) << on.describe_plan();
+  EXPECT_NE(on.describe_plan().find("fixed tendons: runs (1 fixed tendons with a spring or limits)"),
+            std::string::npos)
+      << on.describe_plan();
   StepOptions off;
   off.force(Stage::FixedTendons, StageMode::Off);
   const Simulator skipped(model, 1, off);
@@ -213,7 +215,14 @@ TEST(FixedTendons, ThePlanSaysWhetherTheyAreEnforced) {
   EXPECT_NE(warnings[0].find("'tendon'"), std::string::npos) << warnings[0];
   StepOptions rk4;
   rk4.integrator = Integrator::RK4;
-  EXPECT_THROW_WITH(Simulator(model, 1, rk4), std::invalid_argument, "fixed tendons (1 fixed tendons)");
+  EXPECT_THROW_WITH(Simulator(model, 1, rk4), std::invalid_argument, "fixed tendons (1 fixed tendons with a spring");
+  // a tendon without a spring or limits has no rows: nothing runs, RK4
+  // takes it, and nothing is said of it
+  Model idle = model;
+  idle.fixed_tendons[0].stiffness = 0.0;
+  const Simulator quiet(idle, 1, rk4);
+  EXPECT_FALSE(quiet.plan()[static_cast<int>(Stage::FixedTendons)].runs);
+  EXPECT_TRUE(quiet.warnings().empty());
 }
 
 // Tendons added to a Model by hand are checked, each named by its index
@@ -230,9 +239,17 @@ TEST(FixedTendons, TendonsTheStepCannotTakeAreRefusedByIndexAndName) {
     EXPECT_THROW_WITH(Simulator(model, 1, off), std::invalid_argument, index + piece);
   };
   expect_refused(base, tendon({}), "has no joints");
+  // names: scene files write them and read them back, errors quote them
+  Model named = base;
+  named.fixed_tendons = {tendon({{0, 1.0}}), tendon({{1, 1.0}})};
+  EXPECT_THROW_WITH(Simulator(named, 1), std::invalid_argument,
+                    "Model::fixed_tendons[1] ('tendon'): its name is also fixed_tendons[0]'s");
+  named.fixed_tendons[1].name.clear();
+  EXPECT_THROW_WITH(Simulator(named, 1), std::invalid_argument, "Model::fixed_tendons[1] (''): has no name");
   expect_refused(base, tendon({{0, 1.0}, {2, 1.0}}), "joints[1]: dof 2 must be a DOF of the model (of 2)");
-  expect_refused(base, tendon({{0, 1.0}, {1, 0.0}}), "joints[1]: coefficient must be nonzero and finite");
-  expect_refused(base, tendon({{0, 1e39}}), "joints[0]: coefficient must be nonzero and finite (in float");
+  expect_refused(base, tendon({{0, 1.0}, {1, 0.0}}), "joints[1]: coefficient must be nonzero, a normal number and finite");
+  expect_refused(base, tendon({{0, 1e39}}), "joints[0]: coefficient must be nonzero, a normal number and finite (in float");
+  expect_refused(base, tendon({{0, 1e-46}}), "joints[0]: coefficient must be nonzero, a normal number");  // 0 in float
   expect_refused(base, tendon({{1, 1.0}, {0, 1.0}, {1, 2.0}}), "joints[2]: slider1_joint appears twice (also joints[0])");
   FixedTendon negative = tendon({{0, 1.0}});
   negative.damping = -1.0;
@@ -243,6 +260,21 @@ TEST(FixedTendons, TendonsTheStepCannotTakeAreRefusedByIndexAndName) {
   FixedTendon upside = tendon({{0, 1.0}});
   upside.lower_limit = std::numeric_limits<double>::infinity();
   expect_refused(base, upside, "lower_limit and upper_limit must be ordered");
+  // a units mistake: 1e-40 N/m gives an infinite compliance 1 / (h (k h + c))
+  // in float (h 2 ms); the same gains are refused for a contact
+  FixedTendon faint = tendon({{0, 1.0}});
+  faint.stiffness = 1e-40;
+  expect_refused(base, faint, "stiffness 1e-40, damping 0 and limit_stiffness 0 must each be 0 or large enough");
+  FixedTendon faint_limit = tendon({{0, 1.0}});
+  faint_limit.upper_limit = 0.1, faint_limit.limit_stiffness = 1e-40;
+  expect_refused(base, faint_limit, "stiffness 0, damping 0 and limit_stiffness 1e-40 must each be 0 or large enough");
+  EXPECT_NO_THROW(Simulator(base, 1, options(Precision::Double, SolverType::PGS, 0.002)));
+  StepOptions faint_contacts;
+  faint_contacts.contacts.stiffness = 1e-40;
+  EXPECT_THROW_WITH(Simulator(base, 1, faint_contacts), std::invalid_argument,
+                    "ContactSettings::stiffness 1e-40 N/m and damping 0 N s/m are too small for float");
+  faint_contacts.precision = Precision::Double;
+  EXPECT_NO_THROW(Simulator(base, 1, faint_contacts));
   FixedTendon nan_rest = tendon({{0, 1.0}});
   nan_rest.rest_length = std::nan("");
   expect_refused(base, nan_rest, "rest_length and offset must be finite");
@@ -251,7 +283,7 @@ TEST(FixedTendons, TendonsTheStepCannotTakeAreRefusedByIndexAndName) {
 }
 
 // A snapshot restores only into a simulator whose tendon rows act on the
-// same DOFs (its warm start is theirs).
+// same DOFs, split the same way into rows (its warm start is theirs).
 TEST(FixedTendons, ASnapshotRestoresOnlyWhereTheTendonsSpanTheSameDofs) {
   Model model = sliders({1.0, 1.0, 1.0});
   FixedTendon t = tendon({{0, 1.0}, {1, 1.0}});
@@ -264,6 +296,17 @@ TEST(FixedTendons, ASnapshotRestoresOnlyWhereTheTendonsSpanTheSameDofs) {
   a.step(3);
   EXPECT_NO_THROW(b.restore(0, a.snapshot(0)));
   EXPECT_THROW_WITH(c.restore(0, a.snapshot(0)), std::invalid_argument, "restore");
+  // the same DOFs split otherwise: {0, 1} and {2} against {0} and {1, 2}
+  Model split = model, resplit = model;
+  split.fixed_tendons.push_back(tendon({{2, 1.0}}));
+  split.fixed_tendons[1].name = "second";
+  split.fixed_tendons[1].stiffness = 10.0;
+  resplit.fixed_tendons = split.fixed_tendons;
+  resplit.fixed_tendons[0].joints = {{0, 1.0}};
+  resplit.fixed_tendons[1].joints = {{1, 1.0}, {2, 1.0}};
+  Simulator d(split, 1), e(resplit, 1);
+  d.step(3);
+  EXPECT_THROW_WITH(e.restore(0, d.snapshot(0)), std::invalid_argument, "restore");
 }
 
 }  // namespace
