@@ -35,18 +35,23 @@ void validate_actuators(const Model& model, const std::vector<Actuator>& actuato
     require(names.insert(a.name).second, where + "the name is another actuator's");
     require_driven_dof(model, a.dof, where, "DOF");
     const std::string finite = finite_word(precision);
+    // > 0 in the precision too: float flushes 1e-50 to zero, and a zero
+    // gear divides the command by zero
     auto positive = [&](double x, const char* field) {
-      require(finite_in(precision, x) && x > 0,
-              [&] { return where + field + " must be " + finite + " and > 0, got " + number_text(x); });
+      require(finite_in(precision, x) && x >= smallest_normal(precision),
+              [&] { return where + field + " must be " + finite + " and > 0 (a normal number), got " + number_text(x); });
     };
     positive(a.gear, "gear");
     positive(a.torque_constant, "torque_constant");
     positive(a.bus_voltage, "bus_voltage");
     positive(a.resistance, "resistance");
     positive(a.velocity_constant, "velocity_constant");
-    require(a.peak_torque > 0 && (a.peak_torque == Model::kInfinity || finite_in(precision, a.peak_torque)), [&] {
-      return where + "peak_torque must be > 0 and " + finite + " (+inf for none), got " + number_text(a.peak_torque);
-    });
+    require(a.peak_torque >= smallest_normal(precision) &&
+                (a.peak_torque == Model::kInfinity || finite_in(precision, a.peak_torque)),
+            [&] {
+              return where + "peak_torque must be > 0 (a normal number) and " + finite + " (+inf for none), got " +
+                     number_text(a.peak_torque);
+            });
     // the constants the step takes: each may be in range while these are not
     positive(a.stall_torque(), "the stall torque K_t V_bus / R");
     positive(a.back_emf_damping(), "the back-EMF damping K_t / (R K_v)");

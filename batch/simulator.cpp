@@ -704,7 +704,14 @@ std::vector<std::string> Simulator::warnings() const {
                          options_.integrator == Integrator::RK4 && plan_[static_cast<int>(Stage::LinkDamping)].runs),
         options_.integrator);
   }
-  for (std::string line : {describe_stiff_drives(*model_, stiff_drives(), options_.substeps), fast_modes,
+  std::string actuators;
+  if (!options_.actuators.empty() && copies() > 0) {
+    const double bound = options_.integrator == Integrator::RK4 ? kRk4Bound : kExplicitDampingBound;
+    actuators = describe_fast_actuators(
+        options_.actuators, fast_actuators(*model_, dofs_, options_.actuators, q(0), options_.dt / options_.substeps, bound),
+        bound);
+  }
+  for (std::string line : {describe_stiff_drives(*model_, stiff_drives(), options_.substeps), fast_modes, actuators,
                            unenforced_mimics(), unenforced_tendons()})
     if (!line.empty()) lines.push_back(std::move(line));
   lines.insert(lines.end(), pairs_.notes.begin(), pairs_.notes.end());

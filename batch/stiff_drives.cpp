@@ -69,6 +69,46 @@ std::string describe_fast_joint_modes(const Model& model, const std::vector<Stif
   return out.str();
 }
 
+std::vector<FastActuator> fast_actuators(const Model& model, const std::vector<DofSettings>& dofs,
+                                         const std::vector<Actuator>& actuators, const Eigen::VectorXd& q, double h,
+                                         double bound) {
+  std::vector<FastActuator> fast;
+  if (std::none_of(actuators.begin(), actuators.end(), [](const Actuator& a) { return a.enforce_operating_region; }))
+    return fast;
+  Eigen::MatrixXd Mt = CopyDynamics(model).mass_matrix(q);
+  for (int k = 0; k < model.nv; ++k) {
+    const DofSettings& d = dofs[k];
+    const double kp = d.drive_type == DriveType::Acceleration ? d.drive_stiffness * Mt(k, k) : d.drive_stiffness;
+    const double kd = d.drive_type == DriveType::Acceleration ? d.drive_damping * Mt(k, k) : d.drive_damping;
+    Mt(k, k) += h * (kd + d.damping) + h * h * (kp + d.spring_stiffness);
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> factor(Mt);
+  for (std::size_t i = 0; i < actuators.size(); ++i) {
+    const Actuator& a = actuators[i];
+    if (!a.enforce_operating_region) continue;
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(model.nv);
+    g[a.dof] = a.gear;
+    for (const auto& [dof, ratio] : a.couplings) g[dof] += ratio;
+    const double lambda = a.back_emf_damping() * g.dot(factor.solve(g));
+    if (h * lambda > bound) fast.push_back({static_cast<int>(i), h * lambda});
+  }
+  std::stable_sort(fast.begin(), fast.end(), [](const FastActuator& x, const FastActuator& y) { return x.ratio > y.ratio; });
+  return fast;
+}
+
+std::string describe_fast_actuators(const std::vector<Actuator>& actuators, const std::vector<FastActuator>& fast,
+                                    double bound) {
+  if (fast.empty()) return {};
+  std::ostringstream out;
+  out.precision(3);
+  const Actuator& first = actuators[fast.front().actuator];
+  out << "fast actuators: " << fast.size() << " actuator(s) brake on their voltage lines faster than the step "
+      << "can follow, taken explicitly as RaiSim takes them (h b g^T Mt^-1 g " << fast.front().ratio << " at '"
+      << first.name << "', diverging above " << bound << " once the motor reaches a voltage line): "
+      << "lower dt or use substeps, or check the gear ratio and the motor constants (b = K_t / (R K_v))";
+  return out.str();
+}
+
 std::string describe_stiff_drives(const Model& model, const std::vector<StiffDrive>& stiff, int substeps) {
   if (stiff.empty()) return {};
   std::ostringstream out;

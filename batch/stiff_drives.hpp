@@ -6,6 +6,7 @@
 // one PhysX gives: lower gains, or a shorter step (StepOptions::substeps).
 #pragma once
 
+#include "batch/actuators.hpp"
 #include "batch/step_options.hpp"
 #include "layout/model.hpp"
 
@@ -52,5 +53,29 @@ std::vector<StiffDrive> fast_joint_modes(const Model& model, const std::vector<D
 // One line as above for the integrator that meets them (RK4 or the
 // trapezoid); empty when there are none.
 std::string describe_fast_joint_modes(const Model& model, const std::vector<StiffDrive>& fast, Integrator integrator);
+
+// An actuator whose back-EMF braking is too fast for the step. On a
+// voltage line the motor's torque is tau_stall - b omega with omega = g^T v
+// (g: G on the driven DOF, r_c on the coupled ones), so the joints feel the
+// damping b g g^T, which the step takes explicitly at the velocity it
+// starts from (RaiSim's law, batch/actuators.hpp). Against the step's
+// inertia Mt = M + diag(w) (w: the implicit drives', damping's and
+// springs' weights) that damping's one mode decays at lambda = b g^T Mt^-1
+// g, and explicitly the velocity on it is multiplied by 1 - h lambda per
+// step: it grows, alternating in sign, once h lambda passes 2 (the Eulers
+// and the trapezoid's predictor; RK4 2.78). ratio = h lambda at q with the
+// nominal strength 1, the largest first; only actuators whose region is
+// enforced.
+struct FastActuator {
+  int actuator = -1;
+  double ratio = 0.0;
+};
+constexpr double kExplicitDampingBound = 2.0;
+std::vector<FastActuator> fast_actuators(const Model& model, const std::vector<DofSettings>& dofs,
+                                         const std::vector<Actuator>& actuators, const Eigen::VectorXd& q, double h,
+                                         double bound);
+// One line for Simulator::warnings; empty when there are none.
+std::string describe_fast_actuators(const std::vector<Actuator>& actuators, const std::vector<FastActuator>& fast,
+                                    double bound);
 
 }  // namespace lockstep

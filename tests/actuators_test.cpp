@@ -318,6 +318,41 @@ TEST(Actuators, DescribePlanCountsThem) {
       << sim.describe_plan();
 }
 
+// The back-EMF braking is explicit, as RaiSim takes it: on a voltage line a
+// motor damps its joint at the rate G^2 b / I, and the step multiplies the
+// velocity's distance from the line's speed by 1 - h G^2 b / I. A shank of
+// 0.02 kg m^2 behind an ANYdrive-like motor (G 50, K_t 0.1, 48 V, 0.5 ohm,
+// K_v 10: G^2 b = 50 N m s) at dt 2 ms has h G^2 b / I = 5: saturated, its
+// velocity grows fourfold per step, alternating in sign, and the warnings
+// name it; with G 20 (h G^2 b / I = 0.8) it settles on the line's speed,
+// tau_stall / (b G) = 23 rad/s (v = omega / G), and nothing is said.
+TEST(Actuators, BrakingTooFastForTheStepIsWarnedOf) {
+  const Model model = spinner(0.02);
+  for (const double gear : {50.0, 20.0}) {
+    Actuator a = motor(0, "knee");
+    a.gear = gear, a.torque_constant = 0.1, a.bus_voltage = 48, a.resistance = 0.5, a.velocity_constant = 10;
+    a.peak_torque = Model::kInfinity;
+    StepOptions o = actuated(Precision::Double, {a});
+    o.dt = 0.002;
+    Simulator sim(model, 1, o);
+    sim.set_actuator_torques(0, Eigen::VectorXd::Constant(1, 1e3));  // saturated: on the voltage line
+    sim.step(100);
+    const double v = sim.v(0)[0], line = a.stall_torque() / (a.back_emf_damping() * gear);
+    const std::vector<std::string> warnings = sim.warnings();
+    if (gear == 50.0) {
+      EXPECT_GT(std::abs(v), 1e6 * line) << "diverges";
+      ASSERT_EQ(warnings.size(), 1u);
+      EXPECT_NE(warnings[0].find("fast actuators: 1 actuator(s) brake on their voltage lines faster than the step"),
+                std::string::npos)
+          << warnings[0];
+      EXPECT_NE(warnings[0].find("(h b g^T Mt^-1 g 5 at 'knee', diverging above 2"), std::string::npos) << warnings[0];
+    } else {
+      EXPECT_NEAR(v, line, 1e-9 * line);
+      EXPECT_TRUE(warnings.empty()) << warnings.front();
+    }
+  }
+}
+
 // Each bad actuator is refused with its index, name and field.
 TEST(Actuators, BadActuatorsAreRefusedByName) {
   const Model anymal = load_shared_model("anymal_b", true);
@@ -328,15 +363,21 @@ TEST(Actuators, BadActuatorsAreRefusedByName) {
   const Bad cases[] = {
       {[](Actuator& a) { a.dof = 18; }, "actuator 0 (motor): DOF 18 outside [0, 18)"},
       {[](Actuator& a) { a.dof = 2; }, "actuator 0 (motor): DOF 2 (anymal_root[2]) is a floating base's"},
-      {[](Actuator& a) { a.gear = 0; }, "actuator 0 (motor): gear must be finite (in float, within 3.4e38) and > 0, got 0"},
-      {[](Actuator& a) { a.gear = -1e-9; }, "gear must be finite (in float, within 3.4e38) and > 0, got -1e-09"},
-      {[](Actuator& a) { a.gear = 1e39; }, "gear must be finite (in float, within 3.4e38) and > 0, got 1e+39"},
-      {[](Actuator& a) { a.resistance = 1e-300; }, "the stall torque K_t V_bus / R must be finite (in float, within 3.4e38) and > 0"},
-      {[](Actuator& a) { a.velocity_constant = 1e-300; },
-       "the back-EMF damping K_t / (R K_v) must be finite (in float, within 3.4e38) and > 0, got 1e+299"},
+      {[](Actuator& a) { a.gear = 0; }, "actuator 0 (motor): gear must be finite (in float, within 3.4e38) and > 0 (a normal number), got 0"},
+      {[](Actuator& a) { a.gear = -1e-9; }, "gear must be finite (in float, within 3.4e38) and > 0 (a normal number), got -1e-09"},
+      {[](Actuator& a) { a.gear = 1e-50; },  // zero in float: the command would be divided by it
+       "gear must be finite (in float, within 3.4e38) and > 0 (a normal number), got 1e-50"},
+      {[](Actuator& a) { a.peak_torque = 1e-50; }, "peak_torque must be > 0 (a normal number)"},
+      {[](Actuator& a) { a.gear = 1e39; },
+       "gear must be finite (in float, within 3.4e38) and > 0 (a normal number), got 1e+39"},
+      {[](Actuator& a) { a.torque_constant = 1e30, a.resistance = 1e-10; },
+       "the stall torque K_t V_bus / R must be finite (in float, within 3.4e38) and > 0"},
+      {[](Actuator& a) { a.velocity_constant = 1e-20, a.resistance = 1e-20; },
+       "the back-EMF damping K_t / (R K_v) must be finite (in float, within 3.4e38) and > 0 (a normal number), "
+       "got 1.0000000000000001e+39"},
       {[](Actuator& a) { a.resistance = -1; }, "resistance must be finite (in float, within 3.4e38) and > 0"},
       {[](Actuator& a) { a.velocity_constant = Model::kInfinity; }, "velocity_constant must be finite (in float, within 3.4e38) and > 0"},
-      {[](Actuator& a) { a.peak_torque = 0; }, "peak_torque must be > 0 and finite (in float, within 3.4e38) (+inf for none)"},
+      {[](Actuator& a) { a.peak_torque = 0; }, "peak_torque must be > 0 (a normal number) and finite (in float, within 3.4e38) (+inf for none)"},
       {[](Actuator& a) { a.couplings = {{7, 1.0}}; }, "coupled DOF 7 is the driven DOF"},
       {[](Actuator& a) { a.couplings = {{8, 1.0}, {8, 2.0}}; }, "coupled DOF 8 given twice"},
       {[](Actuator& a) { a.couplings = {{8, std::nan("")}}; }, "the ratio of coupled DOF 8 must be finite (in float, within 3.4e38)"},
