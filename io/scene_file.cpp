@@ -466,8 +466,6 @@ void read_link_damping(const json::Value& v, const At& at, Model& model) {
   });
 }
 
-// A DOF named as `lockstep info` lists them ("knee", "ball[1]"), not a
-// floating base's.
 // The member `key` of o, which must be there.
 const json::Value& required_member(const Object& o, const char* key) {
   const json::Value* value = o.find(key);
@@ -475,6 +473,7 @@ const json::Value& required_member(const Object& o, const char* key) {
   return *value;
 }
 
+// A DOF named as `lockstep info` lists them ("knee", "ball[1]").
 int named_dof(const Model& model, const std::string& name, const At& at) {
   const auto it = model.dof_by_name.find(name);
   if (it == model.dof_by_name.end())
@@ -483,6 +482,7 @@ int named_dof(const Model& model, const std::string& name, const At& at) {
   return it->second;
 }
 
+// The same, not a floating base's.
 int actuated_dof(const Model& model, const std::string& name, const At& at) {
   const int dof = named_dof(model, name, at);
   if (model.body_joint[model.dof_body[dof]] == JointType::Free)
