@@ -64,11 +64,12 @@ struct ContactSettings {
   std::vector<std::pair<std::string, std::string>> enabled_pairs, disabled_pairs;
 
   int capacity = 16;      // contact points kept per copy per step (at most kMaxContactCapacity); more are dropped and counted
-  // Contacts exist below the separation margin + speculative_speed * dt
+  // Contacts exist below the separation margin + speculative_speed * h (h
+  // the pipeline run's step, dt / substeps)
   // (plus the distance the bodies' free motion can close within the step):
   // speculative rows, which act only once the gap closes. The speed term
   // catches what the solve itself sets moving (a box pushed by a finger
-  // into a wall), so a longer step looks further.
+  // into a wall), so a longer run looks further.
   double margin = 0.001;            // m
   double speculative_speed = 0.5;   // m/s
   // Compliance: a spring-damper normal force k (penetration) + c (approach

@@ -11,28 +11,28 @@ const char* precision_name(Precision precision) { return precision == Precision:
 
 namespace {
 
-// One copy on the scalar reference lane of precision T.
+// One copy on the scalar reference lane of precision T. Each call fills a
+// state of its own (BatchDynamics keeps its scratch per thread), so threads
+// may share one object, as its const methods promise.
 template <class T>
 class OneCopy {
  public:
-  explicit OneCopy(const Model& model) : dynamics_(model), state_(dynamics_.make_state(1)) {}
+  explicit OneCopy(const Model& model) : dynamics_(model) {}
 
-  void set_q(const Eigen::VectorXd& q) { set(state_.q, q, "q"); }
-  void set_v(const Eigen::VectorXd& v) { set(state_.v, v, "v"); }
-  void set_tau(const Eigen::VectorXd& tau) { set(state_.tau, tau, "tau"); }
-  void set_qacc(const Eigen::VectorXd& a) { set(state_.qacc, a, "qacc"); }
-  void set_wrench(const Eigen::MatrixXd* wrench) {
-    const int nbody = dynamics_.model().nbody;
-    if (!wrench) {
-      state_.wrench.set(0, Eigen::VectorXd::Zero(6 * nbody));
-      return;
-    }
-    if (wrench->rows() != nbody || wrench->cols() != 6)
-      throw std::invalid_argument("link_wrench: expected " + std::to_string(nbody) + " x 6, got " +
-                                  std::to_string(wrench->rows()) + " x " + std::to_string(wrench->cols()));
-    Eigen::VectorXd flat(6 * nbody);
-    for (int b = 0; b < nbody; ++b) flat.segment<6>(6 * b) = wrench->row(b).transpose();
-    state_.wrench.set(0, flat);
+  // Runs f(dynamics, state, out) into an output array of `size` values,
+  // the state holding the call's inputs.
+  template <class F>
+  Eigen::VectorXd run(const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& tau,
+                      const Eigen::VectorXd& qacc, const Eigen::MatrixXd* wrench, F&& f, int size) const {
+    BatchState<T> state = dynamics_.make_state(1);
+    set(state.q, q, "q");
+    set(state.v, v, "v");
+    set(state.tau, tau, "tau");
+    set(state.qacc, qacc, "qacc");
+    set_wrench(state, wrench);
+    BatchArray<T> out = dynamics_.make_array(1, size);
+    f(dynamics_, state, out);
+    return out.get(0);
   }
 
   Eigen::VectorXd integrate(const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) const {
@@ -45,14 +45,6 @@ class OneCopy {
   Eigen::VectorXd difference(const Eigen::VectorXd& q0, const Eigen::VectorXd& q1) const {
     BatchArray<T> out = dynamics_.make_array(1, dynamics_.model().nv);
     dynamics_.difference(configuration(q0, "q0"), configuration(q1, "q1"), out);
-    return out.get(0);
-  }
-
-  // Runs f(dynamics, state, out) into an output array of `size` values.
-  template <class F>
-  Eigen::VectorXd run(F&& f, int size) const {
-    BatchArray<T> out = dynamics_.make_array(1, size);
-    f(dynamics_, state_, out);
     return out.get(0);
   }
 
@@ -69,8 +61,21 @@ class OneCopy {
     array.set(0, values);
   }
 
+  void set_wrench(BatchState<T>& state, const Eigen::MatrixXd* wrench) const {
+    const int nbody = dynamics_.model().nbody;
+    if (!wrench) {
+      state.wrench.set(0, Eigen::VectorXd::Zero(6 * nbody));
+      return;
+    }
+    if (wrench->rows() != nbody || wrench->cols() != 6)
+      throw std::invalid_argument("link_wrench: expected " + std::to_string(nbody) + " x 6, got " +
+                                  std::to_string(wrench->rows()) + " x " + std::to_string(wrench->cols()));
+    Eigen::VectorXd flat(6 * nbody);
+    for (int b = 0; b < nbody; ++b) flat.segment<6>(6 * b) = wrench->row(b).transpose();
+    state.wrench.set(0, flat);
+  }
+
   BatchDynamics<T> dynamics_;
-  BatchState<T> state_;
 };
 
 std::vector<Eigen::Isometry3d> poses(const Eigen::VectorXd& flat) {
@@ -122,13 +127,9 @@ struct CopyDynamics::Inputs {
 template <class Method>
 Eigen::VectorXd CopyDynamics::evaluate(const Inputs& in, Method&& method, int size) const {
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model_->nv);
-  return impl_->visit([&](auto& c) {
-    c.set_q(in.q ? *in.q : model_->neutral_configuration());
-    c.set_v(in.v ? *in.v : zero);
-    c.set_tau(in.tau ? *in.tau : zero);
-    c.set_qacc(in.qacc ? *in.qacc : zero);
-    c.set_wrench(in.wrench);
-    return c.run(method, size);
+  return impl_->visit([&](const auto& c) {
+    return c.run(in.q ? *in.q : model_->neutral_configuration(), in.v ? *in.v : zero, in.tau ? *in.tau : zero,
+                 in.qacc ? *in.qacc : zero, in.wrench, method, size);
   });
 }
 

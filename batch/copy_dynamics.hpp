@@ -1,7 +1,8 @@
 // Dynamics of one environment copy at a time, for tools, tests and users who
 // want answers for a single state. It runs the same kernels as the batch, on
 // the scalar reference lane, in the chosen precision; inputs and outputs are
-// double Eigen vectors in low-level order.
+// double Eigen vectors in low-level order. Threads may share one object:
+// each call works on its own copy of the inputs.
 //
 // Shapes: q (nq), v (nv), tau (nv), link_wrench (nbody x 6, each row a world-
 // frame [force; torque about the body's COM]); matrices nv x nv.

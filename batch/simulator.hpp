@@ -329,7 +329,8 @@ class Simulator {
   // the armature's share (armature x acceleration). A Free joint transmits
   // only its feedforward force, and what the implicit gyroscopic force
   // changed in the step (O(h |w| |a|) per unit inertia). With substeps: the
-  // last pipeline run. Zero until a step follows a reset or set_state.
+  // last pipeline run (applied_torque() is the runs' mean, so the identity
+  // along the axes holds against the last run's torque, not against it). Zero until a step follows a reset or set_state.
   // Read before changing the copy's wrenches, gravity or inertias: the
   // forces are found when read. docs/conventions.md, "Joint forces after a
   // step".

@@ -79,9 +79,12 @@ void read_entry(const json::Value& value, const std::string& where, JointType ty
   if (part == Part::Q && (type == JointType::Free || type == JointType::Spherical)) {
     const int first = offset + (type == JointType::Free ? 3 : 0);
     const double norm = out.segment<4>(first).norm();
+    // the message's norm without the squares' overflow (1e200 read as
+    // inf, written null) or underflow (1e-200 read as 0)
     if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance))
-      throw StateError(where + ": the quaternion (qw,qx,qy,qz) has norm " + json::number(norm) +
-                       "; it must be 1 within " + json::number(kQuaternionNormTolerance));
+      throw StateError(where + ": the quaternion (qw,qx,qy,qz) has norm " +
+                       json::number(out.segment<4>(first).stableNorm()) + "; it must be 1 within " +
+                       json::number(kQuaternionNormTolerance));
     // A quaternion already unit to rounding is kept as written, so reading
     // what was written after a first normalisation gives the same bits.
     if (std::abs(norm - 1.0) > 4 * std::numeric_limits<double>::epsilon()) out.segment<4>(first) /= norm;

@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <thread>
 
 namespace lockstep {
 namespace {
@@ -501,6 +502,31 @@ TEST(BatchDynamicsErrors, RefuseStatesOfAnotherWidthOrModelAndBadIndices) {
             "point_jacobian: frame index 999 outside [0, " + std::to_string(anymal.frame_name.size()) + ")");
   scalar.potential_energy(state, energy);  // a state of its own is read
   EXPECT_TRUE(std::isfinite(energy.get(0)[0]));
+}
+
+// Threads sharing one CopyDynamics get each call's own answer: four
+// threads, each with its own configuration, ask for the mass matrix 200
+// times and compare with the answer of one thread alone (the calls once
+// shared one state, and about a tenth of such answers were another
+// thread's or a mix).
+TEST(CopyDynamicsThreads, ThreadsSharingOneObjectGetTheirOwnAnswers) {
+  const Model anymal = test::load_shared_model("anymal_b", true);
+  const CopyDynamics dynamics(anymal);
+  std::mt19937 rng(5);
+  std::vector<Eigen::VectorXd> q;
+  std::vector<Eigen::MatrixXd> expected;
+  for (int t = 0; t < 4; ++t) {
+    q.push_back(test::random_configuration(anymal, rng));
+    expected.push_back(dynamics.mass_matrix(q.back()));
+  }
+  std::vector<int> wrong(4, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      for (int i = 0; i < 200; ++i) wrong[t] += dynamics.mass_matrix(q[t]) != expected[t];
+    });
+  for (std::thread& thread : threads) thread.join();
+  for (int t = 0; t < 4; ++t) EXPECT_EQ(wrong[t], 0) << "thread " << t;
 }
 
 }  // namespace

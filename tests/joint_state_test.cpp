@@ -82,6 +82,11 @@ TEST(CliState, NearlyUnitQuaternionsAreNormalised) {
   EXPECT_NE(error_of(model, R"({"q": {"shoulder": [0.5, 0, 0, 0]}})").find("q.shoulder: the quaternion"),
             std::string::npos);
   EXPECT_NE(error_of(model, R"({"q": {"bot_root": [0, 0, 0, 0, 0, 0, 0]}})").find("has norm 0"), std::string::npos);
+  // norms whose squares overflow or underflow are still named as they are
+  EXPECT_NE(error_of(model, R"({"q": {"bot_root": [0, 0, 0, 1e200, 1e200, 0, 0]}})").find("has norm 1.414213562373"),
+            std::string::npos);
+  EXPECT_NE(error_of(model, R"({"q": {"bot_root": [0, 0, 0, 1e-200, 0, 0, 0]}})").find("has norm 1e-200"),
+            std::string::npos);
 }
 
 // What a first read normalised reads back as written: writing a state and
