@@ -505,7 +505,7 @@ TEST(BatchDynamicsErrors, RefuseStatesOfAnotherWidthOrModelAndBadIndices) {
 }
 
 // Threads sharing one CopyDynamics get each call's own answer: four
-// threads, each with its own configuration, ask for the mass matrix 200
+// threads, each with its own configuration, ask for the mass matrix 2000
 // times and compare with the answer of one thread alone (the calls once
 // shared one state, and about a tenth of such answers were another
 // thread's or a mix).
@@ -523,7 +523,7 @@ TEST(CopyDynamicsThreads, ThreadsSharingOneObjectGetTheirOwnAnswers) {
   std::vector<std::thread> threads;
   for (int t = 0; t < 4; ++t)
     threads.emplace_back([&, t] {
-      for (int i = 0; i < 200; ++i) wrong[t] += dynamics.mass_matrix(q[t]) != expected[t];
+      for (int i = 0; i < 2000; ++i) wrong[t] += dynamics.mass_matrix(q[t]) != expected[t];
     });
   for (std::thread& thread : threads) thread.join();
   for (int t = 0; t < 4; ++t) EXPECT_EQ(wrong[t], 0) << "thread " << t;
