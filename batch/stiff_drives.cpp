@@ -92,7 +92,8 @@ std::vector<FastActuator> fast_actuators(const Model& model, const std::vector<D
     const double lambda = a.back_emf_damping() * g.dot(factor.solve(g));
     if (h * lambda > bound) fast.push_back({static_cast<int>(i), h * lambda});
   }
-  std::stable_sort(fast.begin(), fast.end(), [](const FastActuator& x, const FastActuator& y) { return x.ratio > y.ratio; });
+  std::stable_sort(fast.begin(), fast.end(),
+                   [](const FastActuator& x, const FastActuator& y) { return x.ratio > y.ratio; });
   return fast;
 }
 

@@ -107,10 +107,11 @@ TEST(FixedTendons, ATendonOnOneJointIsThatJointsSpring) {
 // From a soft tendon to one a million times stiffer, at dt = 1/60 (the
 // stiff one's period 0.4 ms, far below the step): the stretch matches to
 // 1 % and nothing diverges, where the same stiffness as an explicit force
-// would (its k h^2 / m is 5.6e4 > 4 for the 0.5 kg slider). Measured: 4e-14 to 8e-8 of the stretch in
-// double. In float the slider has moved 15 m, whose ulp (1e-6 m) is above
-// the stiffer tendons' stretch (6e-5 m down to 6e-9 m): there the bound
-// adds q's rounding, 4 float eps q_0 (measured 3.5e-7 m at most).
+// would (its k h^2 / m is 5.6e4 > 4 for the 0.5 kg slider). Measured: 4e-14
+// to 8e-8 of the stretch in double. In float the slider has moved 15 m,
+// whose ulp (1e-6 m) is above the stiffer tendons' stretch (6e-5 m down to
+// 6e-9 m): there the bound adds q's rounding, 4 float eps q_0 (measured
+// 3.5e-7 m at most).
 TEST(FixedTendons, AStiffTendonMovesTwoSlidersAsOneBody) {
   const double m0 = 2.0, m1 = 0.5, F = 3.0, dt = 1.0 / 60.0;
   for (double k : {1e2, 1e4, 1e6, 1e8}) {
@@ -127,7 +128,8 @@ TEST(FixedTendons, AStiffTendonMovesTwoSlidersAsOneBody) {
         sim.step(300);  // 5 s
         const Eigen::VectorXd q = sim.q(0), v = sim.v(0);
         const double stretch = m1 * F / (k * (m0 + m1)), a = F / (m0 + m1), t_end = 300 * dt;
-        EXPECT_NEAR(q[0] - q[1], stretch, 0.01 * stretch + (precision == Precision::Float ? 4 * kFloatEps * q[0] : 0.0)) << at;
+        const double rounding = precision == Precision::Float ? 4 * kFloatEps * q[0] : 0.0;
+        EXPECT_NEAR(q[0] - q[1], stretch, 0.01 * stretch + rounding) << at;
         EXPECT_NEAR(v[1], a * t_end, 0.01 * a * t_end) << at;
         EXPECT_EQ(sim.fault_count(), 0) << at;
       }
@@ -247,10 +249,13 @@ TEST(FixedTendons, TendonsTheStepCannotTakeAreRefusedByIndexAndName) {
   named.fixed_tendons[1].name.clear();
   EXPECT_THROW_WITH(Simulator(named, 1), std::invalid_argument, "Model::fixed_tendons[1] (''): has no name");
   expect_refused(base, tendon({{0, 1.0}, {2, 1.0}}), "joints[1]: dof 2 must be a DOF of the model (of 2)");
-  expect_refused(base, tendon({{0, 1.0}, {1, 0.0}}), "joints[1]: coefficient must be nonzero, a normal number and finite");
-  expect_refused(base, tendon({{0, 1e39}}), "joints[0]: coefficient must be nonzero, a normal number and finite (in float");
+  expect_refused(base, tendon({{0, 1.0}, {1, 0.0}}),
+                 "joints[1]: coefficient must be nonzero, a normal number and finite");
+  expect_refused(base, tendon({{0, 1e39}}),
+                 "joints[0]: coefficient must be nonzero, a normal number and finite (in float");
   expect_refused(base, tendon({{0, 1e-46}}), "joints[0]: coefficient must be nonzero, a normal number");  // 0 in float
-  expect_refused(base, tendon({{1, 1.0}, {0, 1.0}, {1, 2.0}}), "joints[2]: slider1_joint appears twice (also joints[0])");
+  expect_refused(base, tendon({{1, 1.0}, {0, 1.0}, {1, 2.0}}),
+                 "joints[2]: slider1_joint appears twice (also joints[0])");
   FixedTendon negative = tendon({{0, 1.0}});
   negative.damping = -1.0;
   expect_refused(base, negative, "damping must be non-negative");
