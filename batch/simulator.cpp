@@ -583,9 +583,8 @@ void Simulator::make_plan() const {
   }
   // a tendon without a spring or a limit has no rows
   const int acting_tendons = static_cast<int>(
-      std::count_if(model_->fixed_tendons.begin(), model_->fixed_tendons.end(), [](const FixedTendon& t) {
-        return t.stiffness > 0 || t.damping > 0 || std::isfinite(t.lower_limit) || std::isfinite(t.upper_limit);
-      }));
+      std::count_if(model_->fixed_tendons.begin(), model_->fixed_tendons.end(),
+                    [](const FixedTendon& t) { return t.has_spring() || t.has_limits(); }));
   auto mode = [&](Stage s) { return options_.stages[static_cast<int>(s)]; };
   plan_ = {
       decide(Stage::Drives, mode(Stage::Drives), drives, "DOFs with drive gains",

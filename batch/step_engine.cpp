@@ -151,14 +151,13 @@ StepEngine<L>::StepEngine(const Model& model, int copies, const StepOptions& opt
   // it has one (their compliances are finite: validate_fixed_tendons).
   if (plan.fixed_tendons)
     for (const FixedTendon& tendon : model.fixed_tendons) {
-      if (tendon.stiffness > 0.0 || tendon.damping > 0.0) {
+      if (tendon.has_spring()) {
         JointRowSpec<T>* row =
             add_coupled_row(JointRowKind::TendonSpring, tendon.joints, -(tendon.rest_length + tendon.offset), 0);
         row->stiffness = static_cast<T>(tendon.stiffness);
         row->damping = static_cast<T>(tendon.damping);
       }
-      const bool limited = std::isfinite(tendon.lower_limit) || std::isfinite(tendon.upper_limit);
-      if (limited)
+      if (tendon.has_limits())
         add_coupled_row(JointRowKind::TendonLimit, tendon.joints, tendon.lower_limit, tendon.upper_limit)->stiffness =
             static_cast<T>(tendon.limit_stiffness);
     }
@@ -767,13 +766,11 @@ void StepEngine<L>::build_joint_columns(Scratch& s) const {
   int n = 0;
   for (int a = 0; a < s.needed_joint_rows; ++a) {
     const JointRowSpec<T>& spec = row_specs_[s.needed_source[a]];
-    auto take = [&](int c) {
-      if (s.column_built[c]) return;
-      s.column_built[c] = 1;
-      s.new_columns[n++] = c;
-    };
-    if (spec.terms.empty()) take(spec.column);
-    for (const RowTerm<T>& term : spec.terms) take(term.column);
+    for_each_term(spec, [&](const RowTerm<T>& term) {
+      if (s.column_built[term.column]) return;
+      s.column_built[term.column] = 1;
+      s.new_columns[n++] = term.column;
+    });
   }
   joint_row_columns<L>(km_, columns_, s.ws, s.rows, s.new_columns.data(), n);
   build_contact_columns(s);
@@ -875,7 +872,7 @@ void StepEngine<L>::solve_blocks(Scratch* s, int count, T h) {
     int n = 0;
     for (int i = 0; i < count; ++i)
       if (active[i]) {
-        build_round(s[i]);
+        build_round(s[i], h);
         round[n++] = &s[i];
       }
     solve_round(round, n, h);
@@ -954,10 +951,11 @@ void StepEngine<L>::spill_contact_rows(Scratch& s) const {
 // in the others), then the contact rows. A round of the contact rows
 // alone solves them where prepare_rows built them. D's entries of the
 // joint rows are read off the columns of Mt^-1 here (joint_row_delassus,
-// J_r X_i), only those of the rows the round takes; the
-// contacts' own block from where spill_contact_rows put it.
+// J_r X_i), only those of the rows the round takes, with a spring row's
+// compliance over the run's step h on its diagonal; the contacts' own
+// block from where spill_contact_rows put it.
 template <class L>
-void StepEngine<L>::build_round(Scratch& s) const {
+void StepEngine<L>::build_round(Scratch& s, T h) const {
   const RowBlock<L>& rows = s.rows.rows;
   RowBlock<L>& sub = s.needed;
   const int mj = static_cast<int>(row_specs_.size()), m = rows.m;
@@ -980,7 +978,8 @@ void StepEngine<L>::build_round(Scratch& s) const {
     copy_row(rows, r, sub, a, nj - mj, a < nj ? s.need[r] : all);  // contact friction: its normal
     if (a < nj) {
       for (int b = 0; b < nj; ++b) D[a * n + b] = joint_row_delassus<L>(row_specs_, s.rows, nv, r, source[b]);
-      if (s.rows.compliance[r] != T(0)) D[a * n + a] += L(s.rows.compliance[r]);  // a spring row (joint_row)
+      const T compliance = row_compliance(row_specs_[r], h);  // a spring row's
+      if (compliance != T(0)) D[a * n + a] += L(compliance);
       // the coupling with the contacts, J_r X_i (X_i = Mt^-1 J_i^T,
       // contact_columns), into both of its entries
       const L sigma = s.rows.sigma[r];
@@ -1166,8 +1165,7 @@ void StepEngine<L>::record_applied(int block, T h, bool first_run, Scratch& s) {
              : spec.kind == JointRowKind::TendonSpring ? passive
                                                        : limits;
     const L torque = lane::load<L>(impulse + r * W) * inv_h;  // stored along J / sigma (finish_rows)
-    if (spec.terms.empty()) add(out + spec.dof * W, torque, false);
-    for (const RowTerm<T>& term : spec.terms) add(out + term.dof * W, L(term.coefficient) * torque, false);
+    for_each_term(spec, [&](const RowTerm<T>& term) { add(out + term.dof * W, L(term.coefficient) * torque, false); });
   }
 }
 

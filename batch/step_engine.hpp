@@ -190,7 +190,7 @@ class StepEngine final : public Simulator::Engine {
   void solve_blocks(Scratch* s, int count, T h);
   L contact_warm_start(const Scratch& s, int i) const;
   void spill_contact_rows(Scratch& s) const;
-  void build_round(Scratch& s) const;
+  void build_round(Scratch& s, T h) const;
   void solve_round(Scratch* const* s, int count, T h) const;
   void begin_held_check(Scratch& s, T h) const;
   void check_held_rows(Scratch& s, T h) const;

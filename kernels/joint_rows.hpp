@@ -59,15 +59,13 @@ struct JointRowSpec {
   T range_lower = -std::numeric_limits<T>::infinity(), range_upper = std::numeric_limits<T>::infinity();
 };
 
-// Per block: the rows, each row's sign and compliance, and the columns
-// Mt^-1 e_k.
+// Per block: the rows, each row's sign, and the columns Mt^-1 e_k.
 template <class L>
 struct JointRowScratch {
   RowBlock<L> rows;
-  std::vector<L> sigma;  // (m)
-  std::vector<lane::scalar_t<L>> compliance;  // (m) added to D's diagonal: a spring row's (0: rigid)
+  std::vector<L> sigma;    // (m)
   std::vector<L> columns;  // (ncolumn x nv)
-  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), compliance(m), columns(ncolumn * nv) {}
+  JointRowScratch(int m, int ncolumn, int nv) : rows(m), sigma(m), columns(ncolumn * nv) {}
 };
 
 // A Friction row's impulse bound over the (sub)step dt: its DOF's Coulomb
@@ -78,21 +76,34 @@ inline L friction_impulse_bound(const JointRowSpec<lane::scalar_t<L>>& spec, con
   return lane::load<L>(friction + spec.dof * lane::width_v<L>) * L(dt);
 }
 
-// sum_i c_i value(term_i) over the terms of a row on several DOFs, in
-// their order.
+// The one term of a one-DOF row: its DOF with coefficient 1.
+template <class T>
+RowTerm<T> own_term(const JointRowSpec<T>& spec) {
+  return {spec.dof, spec.q_index, spec.column, T(1)};
+}
+
+// f(term) for each term of a row: its terms, or a one-DOF row's own.
+template <class T, class F>
+LOCKSTEP_INLINE void for_each_term(const JointRowSpec<T>& spec, F f) {
+  if (spec.terms.empty()) f(own_term(spec));
+  for (const RowTerm<T>& t : spec.terms) f(t);
+}
+
+// sum_i c_i value(term_i) over a row's terms, in their order; a one-DOF
+// row's value(own term) with no product.
 template <class L, class T, class Value>
-LOCKSTEP_INLINE L sum_terms(const std::vector<RowTerm<T>>& terms, Value value) {
+LOCKSTEP_INLINE L row_sum(const JointRowSpec<T>& spec, Value value) {
+  const std::vector<RowTerm<T>>& terms = spec.terms;
+  if (terms.empty()) return value(own_term(spec));
   L sum = L(terms[0].coefficient) * value(terms[0]);
   for (std::size_t i = 1; i < terms.size(); ++i) sum = lane::fmadd(L(terms[i].coefficient), value(terms[i]), sum);
   return sum;
 }
 
-// J_r x / sigma_r for a vector x (nv) over the DOFs: x[dof], or the sum
-// over a row's terms.
+// J_r x / sigma_r for a vector x (nv) over the DOFs.
 template <class T, class L>
 LOCKSTEP_INLINE L joint_row_dofs(const JointRowSpec<T>& spec, const L* x) {
-  if (spec.terms.empty()) return x[spec.dof];
-  return sum_terms<L>(spec.terms, [&](const RowTerm<T>& t) { return x[t.dof]; });
+  return row_sum<L>(spec, [&](const RowTerm<T>& t) { return x[t.dof]; });
 }
 
 // sum_i c_i q_i over a row's terms: a tendon's length, or a mimic's
@@ -101,7 +112,17 @@ template <class L>
 LOCKSTEP_INLINE L row_terms_position(const JointRowSpec<lane::scalar_t<L>>& spec, const lane::scalar_t<L>* q) {
   using T = lane::scalar_t<L>;
   constexpr std::size_t W = lane::width_v<L>;
-  return sum_terms<L>(spec.terms, [&](const RowTerm<T>& t) { return lane::load<L>(q + t.q_index * W); });
+  return row_sum<L>(spec, [&](const RowTerm<T>& t) { return lane::load<L>(q + t.q_index * W); });
+}
+
+// What a spring row adds to its diagonal of D over the (sub)step dt (0: a
+// rigid row): a tendon spring's 1 / (dt (k dt + c)), a springy tendon
+// limit's 1 / (k dt^2). joint_row's targets take the same law.
+template <class T>
+inline T row_compliance(const JointRowSpec<T>& spec, T dt) {
+  if (spec.kind == JointRowKind::TendonSpring) return T(1) / (dt * (spec.stiffness * dt + spec.damping));
+  if (spec.kind == JointRowKind::TendonLimit && spec.stiffness != T(0)) return T(1) / (spec.stiffness * dt * dt);
+  return T(0);
 }
 
 // Component `axis` of the rotation vector of the quaternion at q: out of
@@ -127,7 +148,6 @@ template <class L>
 struct JointRow {
   L sigma, error, target, target_hi, lo, hi, v_free;
   bool positional;
-  lane::scalar_t<L> compliance = 0;  // a spring row's, added to its diagonal of D
   // Per lane: true where the row needs no impulse at its free velocity.
   lane::mask_t<L> at_rest() const { return row_at_rest(v_free, target, target_hi, lo, hi, error, positional); }
 };
@@ -160,13 +180,13 @@ LOCKSTEP_INLINE JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spe
       // Backward Euler of the force f = -k (l + dt J u - l_ref) - c J u
       // over the step: its impulse lambda = dt f gives
       //   J u + lambda / (dt (k dt + c)) = -k (l - l_ref) / (k dt + c),
-      // an equality whose compliance joins D's diagonal (build_round), as a
-      // compliant contact's (contact_rows.hpp). The target does not follow
-      // the position: TGS keeps it through its substeps.
+      // an equality whose compliance (row_compliance) joins D's diagonal
+      // (build_round), as a compliant contact's (contact_rows.hpp). The
+      // target does not follow the position: TGS keeps it through its
+      // substeps.
       const L e = row_terms_position<L>(spec, q) + L(spec.a);
       const T rate = spec.stiffness * dt + spec.damping;  // > 0: the row exists only then
       row.target = row.target_hi = L(-spec.stiffness / rate) * e;
-      row.compliance = T(1) / (dt * rate);
       break;
     }
     case JointRowKind::PositionLimit:
@@ -176,7 +196,7 @@ LOCKSTEP_INLINE JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spe
       // (a tendon's limits: on its length). With a limit stiffness k (a
       // tendon's) the impulse past it is lambda = dt k (-e - dt sigma J u)
       // where positive: sigma J u + lambda / (k dt^2) >= -e / dt, a
-      // compliant one-sided row.
+      // compliant one-sided row (row_compliance).
       const L x = spec.terms.empty() ? joint_row_position<L>(spec, q) : row_terms_position<L>(spec, q);
       const L x_free = lane::fmadd(L(dt), u, x);
       const auto lower = x_free - L(spec.a) < L(spec.b) - x_free;
@@ -188,7 +208,6 @@ LOCKSTEP_INLINE JointRow<L> joint_row(const JointRowSpec<lane::scalar_t<L>>& spe
         row.positional = true;
       } else {
         row.target = row.target_hi = -row.error * L(T(1) / dt);
-        row.compliance = T(1) / (spec.stiffness * dt * dt);
       }
       break;
     }
@@ -309,7 +328,6 @@ lane::mask_t<L> build_joint_rows(const std::vector<JointRowSpec<lane::scalar_t<L
     slack[r] = row.at_rest();
     all_slack = all_slack && slack[r];
     s.sigma[r] = row.sigma;
-    s.compliance[r] = row.compliance;
     rows.error[r] = row.error;
     rows.target[r] = row.target;
     rows.target_hi[r] = row.target_hi;
@@ -394,8 +412,7 @@ void joint_row_columns(const KernelModel<lane::scalar_t<L>>& km, const JointRowC
 template <class L>
 inline L joint_row_response(const JointRowSpec<lane::scalar_t<L>>& spec, const JointRowScratch<L>& s, int nv, int k) {
   using T = lane::scalar_t<L>;
-  if (spec.terms.empty()) return s.columns[spec.column * nv + k];
-  return sum_terms<L>(spec.terms, [&](const RowTerm<T>& t) { return s.columns[t.column * nv + k]; });
+  return row_sum<L>(spec, [&](const RowTerm<T>& t) { return s.columns[t.column * nv + k]; });
 }
 
 // Entry (r, c) of the joint rows' block of the Delassus matrix,
@@ -408,10 +425,7 @@ inline L joint_row_delassus(const std::vector<JointRowSpec<lane::scalar_t<L>>>& 
                             int nv, int r, int c) {
   using T = lane::scalar_t<L>;
   const JointRowSpec<T>& row = specs[r];
-  const L J = row.terms.empty() ? joint_row_response(specs[c], s, nv, row.dof)
-                                : sum_terms<L>(row.terms, [&](const RowTerm<T>& t) {
-                                    return joint_row_response(specs[c], s, nv, t.dof);
-                                  });
+  const L J = row_sum<L>(row, [&](const RowTerm<T>& t) { return joint_row_response(specs[c], s, nv, t.dof); });
   return s.sigma[r] * s.sigma[c] * J;
 }
 
@@ -428,12 +442,11 @@ void add_row_impulses(const KernelModel<lane::scalar_t<L>>& km, const std::vecto
   for (int i = 0; i < count; ++i) {
     const int r = rows[i];
     const L scaled = s.sigma[r] * x[i];
-    auto add_column = [&](const L& weight, int c) {
-      const L* column = &s.columns[c * nv];
+    for_each_term(specs[r], [&](const RowTerm<lane::scalar_t<L>>& t) {
+      const L weight = scaled * L(t.coefficient);  // a one-DOF row's: scaled itself
+      const L* column = &s.columns[t.column * nv];
       for (int k = 0; k < nv; ++k) out[k] = lane::fmadd(weight, column[k], out[k]);
-    };
-    if (specs[r].terms.empty()) add_column(scaled, specs[r].column);
-    for (const RowTerm<lane::scalar_t<L>>& t : specs[r].terms) add_column(scaled * L(t.coefficient), t.column);
+    });
   }
 }
 

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -69,6 +70,9 @@ struct FixedTendon {
   double lower_limit = -std::numeric_limits<double>::infinity();
   double upper_limit = std::numeric_limits<double>::infinity();
   double limit_stiffness = 0.0;  // 0: hard limits; > 0: a spring of this stiffness past a limit
+
+  bool has_spring() const { return stiffness > 0 || damping > 0; }
+  bool has_limits() const { return std::isfinite(lower_limit) || std::isfinite(upper_limit); }
 };
 
 struct Articulation {
